@@ -1,0 +1,24 @@
+"""Typed stubs for the native module ``meshbits._core`` (see ``rust/python.rs``)."""
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+BUILD_PROFILE: str
+
+class MeshbitsError(ValueError): ...
+
+def shape_complexity(
+    vertices: npt.NDArray[np.float64],
+    faces: npt.NDArray[np.uint32],
+    estimator: str,
+    merge_vertices: bool,
+    per_edge: bool,
+    flat_angle: float,
+    ill_angle: float,
+    ill_cocircular: float,
+) -> dict[str, Any]: ...
+def set_num_threads(threads: int) -> None: ...
+def get_num_threads() -> int: ...

@@ -1,0 +1,126 @@
+"""The ``meshbits`` command line.
+
+Every subcommand prints a short human-readable report, or one JSON object with
+``--json``. Exit codes: 0 success, 1 a budget could not be met, 2 bad input (a one-line
+message on stderr, no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from .complexity import shape_complexity
+from .constants import ESTIMATORS
+from .io import example_mesh_path, load_mesh
+
+__all__ = ["main"]
+
+EXIT_OK, EXIT_UNMET, EXIT_BAD_INPUT = 0, 1, 2
+
+
+class UserError(Exception):
+    """A problem with the command's input, reported in one line with exit code 2."""
+
+
+def _print_json(payload: dict[str, Any]) -> None:
+    print(json.dumps(payload, indent=2, allow_nan=True))
+
+
+def _print_table(title: str, rows: Sequence[tuple[str, Any]]) -> None:
+    print(title)
+    width = max(len(name) for name, _ in rows)
+    for name, value in rows:
+        if isinstance(value, float):
+            value = f"{value:.6g}"
+        print(f"  {name:<{width}}  {value}")
+
+
+def _complexity_report(path: Path, args: argparse.Namespace) -> dict[str, Any]:
+    vertices, faces = load_mesh(path)
+    result = shape_complexity(
+        vertices, faces, estimator=args.estimator, merge_vertices=not args.no_merge
+    )
+    return {"mesh": str(path), "vertices": len(vertices), "faces": len(faces), **result.to_dict()}
+
+
+def _add_k(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("k", help="shape complexity K of a mesh (paper Sec. 4)")
+    p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
+    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere")
+    p.add_argument("--no-merge", action="store_true", help="do not weld identical vertices")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=_run_k)
+
+
+def _run_k(args: argparse.Namespace) -> int:
+    report = _complexity_report(args.mesh, args)
+    if args.json:
+        _print_json(report)
+        return EXIT_OK
+    _print_table(
+        f"{report['mesh']}: {report['vertices']} vertices, {report['faces']} faces",
+        [
+            ("K (grid, /S)", report["k"]),
+            ("K (area, /sqrt(A))", report["k_area"]),
+            ("K raw (length)", report["k_raw"]),
+            ("grid size S (length)", report["grid_size"]),
+            ("area (length^2)", report["area"]),
+            ("estimator", report["estimator"]),
+            ("edges", report["edges"]),
+            ("  interior", report["interior_edges"]),
+            ("  boundary (skipped)", report["boundary_edges"]),
+            ("  non-manifold (skipped)", report["nonmanifold_edges"]),
+            ("  flat", report["flat_edges"]),
+            ("  ill-conditioned", report["ill_conditioned_edges"]),
+            ("  degenerate", report["degenerate_edges"]),
+            ("merged vertices", report["merged_vertices"]),
+            ("degenerate faces (skipped)", report["degenerate_faces"]),
+        ],
+    )
+    return EXIT_OK
+
+
+def _add_demo(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="run meshbits on the example mesh shipped in the package")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=_run_demo)
+
+
+def _run_demo(args: argparse.Namespace) -> int:
+    args.mesh = example_mesh_path()
+    args.estimator, args.no_merge = "circumsphere", False
+    return _run_k(args)
+
+
+_COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (_add_k, _add_demo)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="meshbits",
+        description="How many vertices, and how many bits per coordinate, should a mesh keep?",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in _COMMANDS:
+        add(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``meshbits`` program; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args))
+    except (UserError, ValueError, TypeError, FileNotFoundError, OSError) as err:
+        print(f"meshbits {args.command}: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,111 @@
+"""Normalise anything mesh-like to the arrays the native kernels take.
+
+The kernels want ``vertices`` as C-ordered float64 ``(n, 3)`` and ``faces`` as C-ordered
+uint32 ``(m, 3)``. Every public function goes through :func:`as_mesh` or
+:func:`as_points`, so bad input is refused once, here, with a message that names the
+argument, what was expected and what arrived.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["MeshLike", "as_mesh", "as_points"]
+
+#: A ``trimesh.Trimesh``, a ``(vertices, faces)`` pair, or any object with ``vertices`` and
+#: ``faces`` attributes.
+MeshLike = Any
+
+
+def as_points(points: Any, name: str = "points", *, allow_empty: bool = False) -> np.ndarray:
+    """Return ``points`` as a C-ordered float64 ``(n, 3)`` array of finite values.
+
+    Raises
+    ------
+    TypeError
+        If the dtype is not a real number type.
+    ValueError
+        If the shape is not ``(n, 3)``, a value is NaN or infinite, or the array is empty
+        and ``allow_empty`` is false.
+    """
+    array = np.asarray(points)
+    if array.dtype == object or not (
+        np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)
+    ):
+        raise TypeError(f"{name} must hold real numbers, got dtype {array.dtype}")
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (n, 3), got {array.shape}")
+    if len(array) == 0 and not allow_empty:
+        raise ValueError(f"{name} is empty: expected at least one point")
+    out = np.ascontiguousarray(array, dtype=np.float64)
+    finite = np.isfinite(out).all(axis=1)
+    if not finite.all():
+        bad = int(np.flatnonzero(~finite)[0])
+        raise ValueError(
+            f"{name}[{bad}] = {out[bad].tolist()} is not finite "
+            f"({int((~finite).sum())} rows have NaN or infinite coordinates)"
+        )
+    return out
+
+
+def _as_faces(faces: Any, vertex_count: int) -> np.ndarray:
+    array = np.asarray(faces)
+    if array.dtype == bool or not np.issubdtype(array.dtype, np.integer):
+        if array.size == 0 and array.ndim == 2:
+            array = array.astype(np.int64)
+        else:
+            raise TypeError(f"faces must hold integer vertex indices, got dtype {array.dtype}")
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise ValueError(f"faces must have shape (m, 3) (triangles), got {array.shape}")
+    if len(array) == 0:
+        raise ValueError("mesh is empty: faces has no rows")
+    low, high = int(array.min()), int(array.max())
+    if low < 0:
+        row = int(np.flatnonzero((array < 0).any(axis=1))[0])
+        raise ValueError(f"faces[{row}] = {array[row].tolist()} has a negative vertex index")
+    if high >= vertex_count:
+        row = int(np.flatnonzero((array >= vertex_count).any(axis=1))[0])
+        raise ValueError(
+            f"faces[{row}] = {array[row].tolist()} refers to a vertex out of range "
+            f"(there are {vertex_count} vertices)"
+        )
+    if vertex_count > np.iinfo(np.uint32).max:
+        raise ValueError(f"{vertex_count} vertices exceed the supported maximum of 2**32 - 1")
+    return np.ascontiguousarray(array, dtype=np.uint32)
+
+
+def as_mesh(mesh: MeshLike, faces: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``(vertices, faces)`` as C-ordered ``float64 (n, 3)`` and ``uint32 (m, 3)``.
+
+    Parameters
+    ----------
+    mesh
+        A ``trimesh.Trimesh`` (or any object with ``vertices`` and ``faces``), a
+        ``(vertices, faces)`` pair, or a vertex array when ``faces`` is given.
+    faces
+        ``(m, 3)`` integer vertex indices of any integer dtype, C or Fortran order.
+
+    Raises
+    ------
+    TypeError
+        Wrong dtypes, or something that is not a mesh.
+    ValueError
+        Wrong shapes, no vertices or faces, NaN or infinite coordinates, negative or
+        out-of-range indices.
+    """
+    if faces is None:
+        if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
+            vertices, faces = mesh.vertices, mesh.faces
+        elif isinstance(mesh, (tuple, list)) and len(mesh) == 2:
+            vertices, faces = mesh
+        else:
+            raise TypeError(
+                "expected a trimesh.Trimesh, a (vertices, faces) pair, or vertices and faces, "
+                f"got {type(mesh).__name__}"
+            )
+    else:
+        vertices = mesh
+    vertices = as_points(vertices, "vertices")
+    return vertices, _as_faces(faces, len(vertices))

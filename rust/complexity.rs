@@ -1,0 +1,384 @@
+//! Shape complexity K of King & Rossignac (1999), Sec. 4.
+//!
+//! The surface is modelled as spherical patches, one per interior edge `e = (a, b)` with
+//! incident triangles `(a, b, c)` and `(b, a, d)`:
+//!
+//! * `r(e)`: radius of the sphere through `a, b, c, d` (length). With `u = b - a`,
+//!   `v = c - a`, `w = d - a`, the centre is
+//!   `a + (|u|² (v × w) + |v|² (w × u) + |w|² (u × v)) / (2 u · (v × w))` (paper Sec. 4.2).
+//! * `p(e) = (area(abc) + area(abd)) / 3` (area), so that `Σ p(e)` is the total area of a
+//!   closed manifold mesh.
+//! * `K_raw = Σ p(e) / r(e)` (length), the discrete form of `∫ dA / r` (paper Eq. 8 times S).
+//!
+//! Edge classes, decided on the geometry with the tolerances of [`Tolerances`]:
+//!
+//! * **flat**: bending angle `φ ≤ flat_angle`; the sphere is a plane, `r = ∞`, contributes 0.
+//! * **ill-conditioned**: nearly coplanar (`min(φ, π - φ) < ill_angle`) *and* nearly
+//!   co-circular (the circumcentres of the two triangles lie within `ill_cocircular · |e|`
+//!   of each other). The sphere through four such points is 0/0: a perturbation of the
+//!   size of rounding noise moves `r` anywhere between the circle's radius and infinity.
+//!   The circumsphere estimator still uses it (and counts the edge); `Hybrid` uses the
+//!   dihedral value there.
+//! * **degenerate**: an incident triangle has zero area, the edge has zero length, or both
+//!   triangles share their third vertex; contributes 0.
+//! * **boundary** (one incident triangle) and **non-manifold** (three or more) edges have
+//!   no pair of triangles: they are skipped and counted. Their faces' areas still count in
+//!   the total area.
+//!
+//! The dihedral estimate of `p(e)/r(e)` is `φ · |e| / 2` with `φ` the bending angle
+//! (π minus the interior dihedral angle, winding independent). Its sum is the integral of
+//! the mean curvature, which equals `∫ dA / r` on a sphere.
+
+use std::f64::consts::PI;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::adjacency::{EdgeTable, weld_identical};
+use crate::error::{MeshError, check_finite, check_indices};
+
+/// Edges per chunk of the fixed-order parallel sum (keeps results thread-count independent).
+const SUM_CHUNK: usize = 1 << 12;
+
+/// Which per-edge estimate of `p(e) / r(e)` to sum.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Estimator {
+    /// The paper's sphere through the four vertices of the edge's two triangles.
+    Circumsphere,
+    /// `φ · |e| / 2`, the discrete mean-curvature integral.
+    Dihedral,
+    /// Circumsphere, with the dihedral value on ill-conditioned edges.
+    Hybrid,
+}
+
+/// Thresholds of the edge classification; all dimensionless.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerances {
+    /// Bending angle (radians) at or below which an edge is flat.
+    pub flat_angle: f64,
+    /// Bending angle (radians) from 0 or π below which an edge may be ill-conditioned.
+    pub ill_angle: f64,
+    /// Distance between the two triangles' circumcentres, relative to the edge length,
+    /// below which an edge may be ill-conditioned.
+    pub ill_cocircular: f64,
+}
+
+impl Default for Tolerances {
+    fn default() -> Self {
+        Tolerances { flat_angle: 1e-12, ill_angle: 1e-3, ill_cocircular: 1e-3 }
+    }
+}
+
+/// Class of one edge; the discriminants are the codes returned to Python.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum EdgeKind {
+    Curved = 0,
+    Flat = 1,
+    IllConditioned = 2,
+    Boundary = 3,
+    NonManifold = 4,
+    Degenerate = 5,
+}
+
+/// Geometry of one interior edge's pair of triangles.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EdgeGeometry {
+    pub kind: EdgeKind,
+    /// Circumsphere radius (length); `∞` for flat and degenerate edges.
+    pub radius: f64,
+    /// `p(e)`, a third of the two triangles' areas (area).
+    pub weight: f64,
+    /// Bending angle `φ` in `[0, π]` (radians).
+    pub bending: f64,
+    /// Edge length (length).
+    pub length: f64,
+}
+
+/// Circumcentre of the triangle `(0, u, v)`, relative to its first corner.
+#[inline]
+#[must_use]
+fn circumcentre_offset(u: DVec3, v: DVec3, n: DVec3) -> DVec3 {
+    (v.length_squared() * n.cross(u) + u.length_squared() * v.cross(n)) / (2.0 * n.length_squared())
+}
+
+/// Classifies the edge `a b` with opposite vertices `c` and `d`, and computes its sphere.
+#[must_use]
+pub fn edge_geometry(a: DVec3, b: DVec3, c: DVec3, d: DVec3, tol: &Tolerances) -> EdgeGeometry {
+    let (u, v, w) = (b - a, c - a, d - a);
+    let (n1, n2) = (u.cross(v), u.cross(w));
+    let weight = (n1.length() + n2.length()) / 6.0;
+    let length = u.length();
+    let bending = n1.cross(n2).length().atan2(-n1.dot(n2));
+    let degenerate = EdgeGeometry { kind: EdgeKind::Degenerate, radius: f64::INFINITY, weight, bending: 0.0, length };
+    if length == 0.0 || n1 == DVec3::ZERO || n2 == DVec3::ZERO || c == d {
+        return degenerate;
+    }
+    if bending <= tol.flat_angle {
+        return EdgeGeometry { kind: EdgeKind::Flat, radius: f64::INFINITY, weight, bending, length };
+    }
+    let det = u.dot(v.cross(w));
+    let centre = (u.length_squared() * v.cross(w)
+        + v.length_squared() * w.cross(u)
+        + w.length_squared() * u.cross(v))
+        / (2.0 * det);
+    let radius = if det != 0.0 && centre.is_finite() { centre.length() } else { f64::INFINITY };
+    let near_coplanar = bending.min(PI - bending) < tol.ill_angle;
+    let kind = if near_coplanar
+        && (circumcentre_offset(u, v, n1) - circumcentre_offset(u, w, n2)).length()
+            < tol.ill_cocircular * length
+    {
+        EdgeKind::IllConditioned
+    } else {
+        EdgeKind::Curved
+    };
+    EdgeGeometry { kind, radius, weight, bending, length }
+}
+
+impl EdgeGeometry {
+    /// This edge's estimate of `p(e) / r(e)` (length).
+    #[inline]
+    #[must_use]
+    pub fn contribution(&self, estimator: Estimator) -> f64 {
+        let dihedral = self.bending * self.length / 2.0;
+        match (self.kind, estimator) {
+            (EdgeKind::Curved | EdgeKind::IllConditioned, Estimator::Circumsphere) => {
+                self.weight / self.radius
+            }
+            (EdgeKind::Curved, Estimator::Hybrid) => self.weight / self.radius,
+            (EdgeKind::Curved | EdgeKind::IllConditioned, _) => dihedral,
+            _ => 0.0,
+        }
+    }
+}
+
+/// Per-edge arrays, when asked for.
+#[derive(Debug, Clone, Default)]
+pub struct EdgeArrays {
+    /// Vertex pair `(lo, hi)` in the caller's indexing (after welding, the smallest index
+    /// of each set of identical vertices).
+    pub vertices: Vec<[u32; 2]>,
+    pub kind: Vec<u8>,
+    pub radius: Vec<f64>,
+    pub weight: Vec<f64>,
+    pub contribution: Vec<f64>,
+}
+
+/// Everything `shape_complexity` measures on one mesh.
+#[derive(Debug, Clone)]
+pub struct Complexity {
+    /// `Σ contribution`, in the mesh's length unit.
+    pub k_raw: f64,
+    /// Total area of all faces.
+    pub area: f64,
+    /// Bounding box of the vertices referenced by faces.
+    pub bbox_min: [f64; 3],
+    pub bbox_max: [f64; 3],
+    pub edges: usize,
+    pub interior_edges: usize,
+    pub boundary_edges: usize,
+    pub nonmanifold_edges: usize,
+    pub flat_edges: usize,
+    pub ill_conditioned_edges: usize,
+    pub degenerate_edges: usize,
+    pub merged_vertices: usize,
+    /// Faces that repeat a vertex index (after welding); left out of the edge table.
+    pub degenerate_faces: usize,
+    pub per_edge: Option<EdgeArrays>,
+}
+
+/// Sums in fixed chunks so the result does not depend on the number of threads.
+#[must_use]
+pub fn deterministic_sum(values: &[f64]) -> f64 {
+    let partial: Vec<f64> = values.par_chunks(SUM_CHUNK).map(|c| c.iter().sum::<f64>()).collect();
+    partial.iter().sum()
+}
+
+#[inline]
+#[must_use]
+fn point(vertices: &[[f64; 3]], i: u32) -> DVec3 {
+    DVec3::from_array(vertices[i as usize])
+}
+
+/// Shape complexity of a triangle mesh (paper Sec. 4.2). See the module docs for the math.
+pub fn shape_complexity(
+    vertices: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    estimator: Estimator,
+    merge_vertices: bool,
+    per_edge: bool,
+    tol: &Tolerances,
+) -> Result<Complexity, MeshError> {
+    if vertices.is_empty() || faces.is_empty() {
+        return Err(MeshError::Empty(format!(
+            "mesh is empty ({} vertices, {} faces)",
+            vertices.len(),
+            faces.len()
+        )));
+    }
+    check_finite(vertices)?;
+    check_indices(faces, vertices.len())?;
+
+    let (faces, merged_vertices): (std::borrow::Cow<[[u32; 3]]>, usize) = if merge_vertices {
+        let weld = weld_identical(vertices);
+        if weld.merged == 0 {
+            (faces.into(), 0)
+        } else {
+            let c = &weld.canonical;
+            let remapped = faces
+                .par_iter()
+                .map(|f| [c[f[0] as usize], c[f[1] as usize], c[f[2] as usize]])
+                .collect::<Vec<_>>();
+            (remapped.into(), weld.merged)
+        }
+    } else {
+        (faces.into(), 0)
+    };
+    let faces: &[[u32; 3]] = &faces;
+
+    let face_areas: Vec<f64> = faces
+        .par_iter()
+        .map(|f| {
+            let a = point(vertices, f[0]);
+            (point(vertices, f[1]) - a).cross(point(vertices, f[2]) - a).length() / 2.0
+        })
+        .collect();
+    let area = deterministic_sum(&face_areas);
+    if !(area > 0.0) {
+        return Err(MeshError::Empty(format!(
+            "mesh has zero surface area: all {} faces are degenerate",
+            faces.len()
+        )));
+    }
+    let (bbox_min, bbox_max) = referenced_bbox(vertices, faces);
+
+    let table = EdgeTable::build(faces, vertices.len())?;
+    let opposite = |h: u32| {
+        let face = &faces[(h / 3) as usize];
+        face[((h % 3) as usize + 2) % 3]
+    };
+    let geometry: Vec<(EdgeKind, Option<EdgeGeometry>)> = (0..table.len())
+        .into_par_iter()
+        .map(|e| {
+            let incident = table.incident(e);
+            match incident.len() {
+                1 => (EdgeKind::Boundary, None),
+                2 => {
+                    let [lo, hi] = table.edges[e];
+                    let g = edge_geometry(
+                        point(vertices, lo),
+                        point(vertices, hi),
+                        point(vertices, opposite(incident[0])),
+                        point(vertices, opposite(incident[1])),
+                        tol,
+                    );
+                    (g.kind, Some(g))
+                }
+                _ => (EdgeKind::NonManifold, None),
+            }
+        })
+        .collect();
+    let contributions: Vec<f64> =
+        geometry.par_iter().map(|(_, g)| g.map_or(0.0, |g| g.contribution(estimator))).collect();
+    let k_raw = deterministic_sum(&contributions);
+
+    let count = |kind: EdgeKind| geometry.iter().filter(|(k, _)| *k == kind).count();
+    let boundary_edges = count(EdgeKind::Boundary);
+    let nonmanifold_edges = count(EdgeKind::NonManifold);
+    let per_edge = per_edge.then(|| EdgeArrays {
+        vertices: table.edges.clone(),
+        kind: geometry.iter().map(|(k, _)| *k as u8).collect(),
+        radius: geometry.iter().map(|(_, g)| g.map_or(f64::NAN, |g| g.radius)).collect(),
+        weight: geometry.iter().map(|(_, g)| g.map_or(f64::NAN, |g| g.weight)).collect(),
+        contribution: contributions,
+    });
+    Ok(Complexity {
+        k_raw,
+        area,
+        bbox_min,
+        bbox_max,
+        edges: table.len(),
+        interior_edges: table.len() - boundary_edges - nonmanifold_edges,
+        boundary_edges,
+        nonmanifold_edges,
+        flat_edges: count(EdgeKind::Flat),
+        ill_conditioned_edges: count(EdgeKind::IllConditioned),
+        degenerate_edges: count(EdgeKind::Degenerate),
+        merged_vertices,
+        degenerate_faces: table.index_degenerate_faces,
+        per_edge,
+    })
+}
+
+/// Axis-aligned bounding box of the vertices that some face references.
+#[must_use]
+pub fn referenced_bbox(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> ([f64; 3], [f64; 3]) {
+    let (lo, hi) = faces
+        .par_iter()
+        .fold(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
+            |(lo, hi), f| {
+                f.iter().fold((lo, hi), |(lo, hi), &i| {
+                    let p = point(vertices, i);
+                    (lo.min(p), hi.max(p))
+                })
+            },
+        )
+        .reduce(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
+            |(a, b), (c, d)| (a.min(c), b.max(d)),
+        );
+    (lo.to_array(), hi.to_array())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tol() -> Tolerances {
+        Tolerances::default()
+    }
+
+    #[test]
+    fn four_points_on_unit_sphere_give_radius_one() {
+        let a = DVec3::new(1.0, 0.0, 0.0);
+        let b = DVec3::new(0.0, 1.0, 0.0);
+        let c = DVec3::new(0.0, 0.0, 1.0);
+        let d = DVec3::new(0.0, -0.6, -0.8);
+        let g = edge_geometry(a, b, c, d, &tol());
+        assert_eq!(g.kind, EdgeKind::Curved);
+        assert!((g.radius - 1.0).abs() < 1e-12, "{}", g.radius);
+    }
+
+    #[test]
+    fn flat_square_is_flat_and_noisy_square_is_ill_conditioned() {
+        let a = DVec3::new(0.0, 0.0, 0.0);
+        let b = DVec3::new(1.0, 1.0, 0.0);
+        let c = DVec3::new(1.0, 0.0, 0.0);
+        let d = DVec3::new(0.0, 1.0, 0.0);
+        assert_eq!(edge_geometry(a, b, c, d, &tol()).kind, EdgeKind::Flat);
+        let noisy = edge_geometry(a, b, c, d + DVec3::new(0.0, 0.0, 1e-9), &tol());
+        assert_eq!(noisy.kind, EdgeKind::IllConditioned);
+        assert!(noisy.contribution(Estimator::Hybrid) < 1e-8);
+    }
+
+    #[test]
+    fn winding_does_not_change_the_bending_angle() {
+        let a = DVec3::new(0.0, 0.0, 0.0);
+        let b = DVec3::new(1.0, 0.0, 0.0);
+        let c = DVec3::new(0.5, 1.0, 0.2);
+        let d = DVec3::new(0.4, -1.0, 0.3);
+        let g1 = edge_geometry(a, b, c, d, &tol());
+        let g2 = edge_geometry(b, a, d, c, &tol());
+        assert!((g1.bending - g2.bending).abs() < 1e-14);
+        assert!((g1.radius - g2.radius).abs() < 1e-12 * g1.radius);
+    }
+
+    #[test]
+    fn shared_third_vertex_is_degenerate() {
+        let a = DVec3::ZERO;
+        let b = DVec3::X;
+        let c = DVec3::Y;
+        assert_eq!(edge_geometry(a, b, c, c, &tol()).kind, EdgeKind::Degenerate);
+    }
+}

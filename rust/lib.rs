@@ -1,0 +1,14 @@
+//! meshbits: optimal bit allocation for triangle meshes (King & Rossignac, "Optimal Bit
+//! Allocation in 3D Compression", 1999).
+//!
+//! The crate holds the hot paths: shape complexity K ([`complexity`]) over the unique-edge
+//! table ([`adjacency`]). Kernels take plain slices (`&[[f64; 3]]` vertices,
+//! `&[[u32; 3]]` faces), return `Result<_, MeshError>` and never panic on user data; the
+//! only file that knows Python is [`python`].
+
+pub mod adjacency;
+pub mod complexity;
+pub mod error;
+mod python;
+
+pub use error::MeshError;

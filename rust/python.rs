@@ -1,0 +1,167 @@
+//! The Python binding: the only module that uses pyo3 or numpy.
+//!
+//! Each wrapper borrows the numpy arrays (already normalised to C-ordered float64 vertices
+//! and uint32 faces by `meshbits/mesh.py`), checks their layout, releases the GIL around
+//! the kernel, and converts the result. Kernel errors become `meshbits.MeshbitsError`
+//! (a `ValueError`); a panic becomes a `RuntimeError` instead of tearing down Python.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::complexity::{self, Estimator, Tolerances};
+use crate::error::MeshError;
+
+create_exception!(_core, MeshbitsError, PyValueError, "Invalid input to a meshbits kernel.");
+
+/// Worker threads for kernels: 0 means rayon's global pool.
+static THREADS: AtomicUsize = AtomicUsize::new(0);
+
+impl From<MeshError> for PyErr {
+    fn from(err: MeshError) -> PyErr {
+        MeshbitsError::new_err(err.to_string())
+    }
+}
+
+/// Runs a kernel with the GIL released, on the configured number of threads, turning a
+/// panic into a Python `RuntimeError`.
+fn run_detached<T, F>(py: Python<'_>, kernel: F) -> PyResult<T>
+where
+    T: Send,
+    F: FnOnce() -> Result<T, MeshError> + Send,
+{
+    let threads = THREADS.load(Ordering::Relaxed);
+    let outcome = py.detach(move || {
+        catch_unwind(AssertUnwindSafe(move || {
+            if threads == 0 {
+                return kernel().map_err(PyErr::from);
+            }
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| PyRuntimeError::new_err(format!("cannot start threads: {e}")))?
+                .install(kernel)
+                .map_err(PyErr::from)
+        }))
+    });
+    match outcome {
+        Ok(result) => result,
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(PyRuntimeError::new_err(format!("meshbits internal error (please report): {what}")))
+        }
+    }
+}
+
+/// Views an `(n, 3)` C-ordered array as `n` triples.
+fn triples<'a, T: numpy::Element>(
+    array: &'a PyReadonlyArray2<'_, T>,
+    name: &str,
+) -> PyResult<&'a [[T; 3]]> {
+    let shape = array.shape();
+    if shape[1] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "{name} must have shape (n, 3), got ({}, {})",
+            shape[0], shape[1]
+        )));
+    }
+    if !array.is_c_contiguous() {
+        return Err(PyValueError::new_err(format!("{name} must be C-contiguous")));
+    }
+    let flat = array
+        .as_slice()
+        .map_err(|e| PyValueError::new_err(format!("{name} is not contiguous: {e}")))?;
+    let (chunks, rest) = flat.as_chunks::<3>();
+    debug_assert!(rest.is_empty());
+    Ok(chunks)
+}
+
+fn parse_estimator(name: &str) -> PyResult<Estimator> {
+    match name {
+        "circumsphere" => Ok(Estimator::Circumsphere),
+        "dihedral" => Ok(Estimator::Dihedral),
+        "hybrid" => Ok(Estimator::Hybrid),
+        other => Err(PyValueError::new_err(format!(
+            "estimator must be 'circumsphere', 'dihedral' or 'hybrid', got {other:?}"
+        ))),
+    }
+}
+
+/// Shape complexity; returns a dict of raw measurements (see `meshbits.complexity`).
+#[pyfunction]
+#[pyo3(signature = (vertices, faces, estimator, merge_vertices, per_edge, flat_angle, ill_angle, ill_cocircular))]
+#[allow(clippy::too_many_arguments)]
+fn shape_complexity<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, u32>,
+    estimator: &str,
+    merge_vertices: bool,
+    per_edge: bool,
+    flat_angle: f64,
+    ill_angle: f64,
+    ill_cocircular: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let estimator = parse_estimator(estimator)?;
+    let tol = Tolerances { flat_angle, ill_angle, ill_cocircular };
+    let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
+    let c = run_detached(py, || {
+        complexity::shape_complexity(v, f, estimator, merge_vertices, per_edge, &tol)
+    })?;
+    let out = PyDict::new(py);
+    out.set_item("k_raw", c.k_raw)?;
+    out.set_item("area", c.area)?;
+    out.set_item("bbox_min", c.bbox_min.to_vec())?;
+    out.set_item("bbox_max", c.bbox_max.to_vec())?;
+    out.set_item("edges", c.edges)?;
+    out.set_item("interior_edges", c.interior_edges)?;
+    out.set_item("boundary_edges", c.boundary_edges)?;
+    out.set_item("nonmanifold_edges", c.nonmanifold_edges)?;
+    out.set_item("flat_edges", c.flat_edges)?;
+    out.set_item("ill_conditioned_edges", c.ill_conditioned_edges)?;
+    out.set_item("degenerate_edges", c.degenerate_edges)?;
+    out.set_item("merged_vertices", c.merged_vertices)?;
+    out.set_item("degenerate_faces", c.degenerate_faces)?;
+    if let Some(edges) = c.per_edge {
+        let pairs: Vec<u32> = edges.vertices.into_iter().flatten().collect();
+        let n = pairs.len() / 2;
+        out.set_item("edge_vertices", pairs.into_pyarray(py).reshape([n, 2])?)?;
+        out.set_item("edge_kind", edges.kind.into_pyarray(py))?;
+        out.set_item("edge_radius", edges.radius.into_pyarray(py))?;
+        out.set_item("edge_weight", edges.weight.into_pyarray(py))?;
+        out.set_item("edge_contribution", edges.contribution.into_pyarray(py))?;
+    }
+    Ok(out)
+}
+
+/// Sets the number of worker threads for every kernel (0 restores rayon's default pool).
+#[pyfunction]
+fn set_num_threads(threads: usize) {
+    THREADS.store(threads, Ordering::Relaxed);
+}
+
+/// The number of worker threads set by `set_num_threads` (0: rayon's default pool).
+#[pyfunction]
+fn get_num_threads() -> usize {
+    THREADS.load(Ordering::Relaxed)
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("MeshbitsError", m.py().get_type::<MeshbitsError>())?;
+    m.add("BUILD_PROFILE", if cfg!(debug_assertions) { "debug" } else { "release" })?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(shape_complexity, m)?)?;
+    m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(get_num_threads, m)?)?;
+    Ok(())
+}
