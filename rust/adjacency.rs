@@ -1,17 +1,16 @@
 //! Vertex welding and the unique-edge table of a triangle mesh.
 //!
-//! A half-edge is identified by `face * 3 + k`: it runs from corner `k` to corner
-//! `(k + 1) % 3` of `face`, and the corner opposite it is `(k + 2) % 3`. The edge table
-//! groups half-edges by their unordered vertex pair with a counting sort on the smaller
+//! The edge table groups the three edges of every triangle by their unordered vertex pair,
+//! keeping the vertex opposite the edge in that triangle: a counting sort on the smaller
 //! vertex index followed by a tiny sort inside each bucket, so building it is linear in the
-//! face count and its order does not depend on the number of threads.
+//! face count and its content does not depend on the number of threads.
 
 use rayon::prelude::*;
 
 use crate::error::MeshError;
 
-/// Half-edges per parallel work unit when sorting buckets.
-const BUCKET_BLOCK: usize = 1 << 14;
+/// At most this many vertex ranges are built in parallel (each one scans all faces).
+const RANGE_PARTS_MAX: usize = 8;
 
 /// Result of welding vertices with bit-identical coordinates.
 #[derive(Debug, Clone)]
@@ -29,36 +28,57 @@ fn coordinate_key(x: f64) -> u64 {
     if x == 0.0 { 0 } else { x.to_bits() }
 }
 
+/// Mixes the three coordinate keys of a vertex into a 64-bit hash (a multiply-xorshift
+/// finaliser over a running combination; collisions are resolved by full comparison).
+#[inline]
+#[must_use]
+fn vertex_hash(key: [u64; 3]) -> u64 {
+    let mut h = 0x9E37_79B9_7F4A_7C15u64;
+    for k in key {
+        h = (h ^ k).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        h ^= h >> 31;
+    }
+    h.wrapping_mul(0x94D0_49BB_1331_11EB) ^ (h >> 29)
+}
+
 /// Welds vertices whose three coordinates are exactly equal (`-0.0 == 0.0`).
 ///
 /// Triangle soups (STL files) repeat every shared vertex once per triangle; without
-/// welding every edge would look like a boundary. O(n log n), parallel, deterministic.
+/// welding every edge would look like a boundary. Open-addressing hash table with linear
+/// probing, filled in index order so that the first (smallest) index of each set of equal
+/// vertices becomes its representative: expected O(n), deterministic.
 #[must_use]
 pub fn weld_identical(vertices: &[[f64; 3]]) -> Weld {
     let n = vertices.len();
-    let mut order: Vec<u32> = (0..n as u32).collect();
-    let key = |i: u32| {
-        let v = vertices[i as usize];
-        (coordinate_key(v[0]), coordinate_key(v[1]), coordinate_key(v[2]), i)
+    let key = |v: &[f64; 3]| {
+        [
+            coordinate_key(v[0]),
+            coordinate_key(v[1]),
+            coordinate_key(v[2]),
+        ]
     };
-    order.par_sort_unstable_by_key(|&i| key(i));
-    let mut canonical: Vec<u32> = (0..n as u32).collect();
+    let hashes: Vec<u64> = vertices.par_iter().map(|v| vertex_hash(key(v))).collect();
+    let capacity = (2 * n).next_power_of_two().max(16);
+    let mask = capacity - 1;
+    let mut slots = vec![u32::MAX; capacity];
+    let mut canonical: Vec<u32> = Vec::with_capacity(n);
     let mut merged = 0;
-    let mut run_start = 0;
-    for pos in 1..=n {
-        let same = pos < n && {
-            let (ax, ay, az, _) = key(order[run_start]);
-            let (bx, by, bz, _) = key(order[pos]);
-            (ax, ay, az) == (bx, by, bz)
-        };
-        if !same {
-            // `order` is sorted by index inside a run, so its first element is the smallest.
-            let representative = order[run_start];
-            for &i in &order[run_start + 1..pos] {
-                canonical[i as usize] = representative;
-                merged += 1;
+    for (i, v) in vertices.iter().enumerate() {
+        let k = key(v);
+        let mut slot = (hashes[i] as usize) & mask;
+        loop {
+            let occupant = slots[slot];
+            if occupant == u32::MAX {
+                slots[slot] = i as u32;
+                canonical.push(i as u32);
+                break;
             }
-            run_start = pos;
+            if hashes[occupant as usize] == hashes[i] && key(&vertices[occupant as usize]) == k {
+                canonical.push(occupant);
+                merged += 1;
+                break;
+            }
+            slot = (slot + 1) & mask;
         }
     }
     Weld { canonical, merged }
@@ -71,21 +91,92 @@ pub fn is_index_degenerate(face: &[u32; 3]) -> bool {
     face[0] == face[1] || face[1] == face[2] || face[2] == face[0]
 }
 
-/// Unique undirected edges of a triangle mesh with their incident half-edges.
+/// Unique undirected edges of a triangle mesh with the vertex opposite each edge in each
+/// incident triangle.
 #[derive(Debug, Clone)]
 pub struct EdgeTable {
     /// Unique edges as `(lo, hi)` with `lo < hi`, sorted lexicographically.
     pub edges: Vec<[u32; 2]>,
-    /// Half-edges of edge `e` are `halfedges[starts[e] .. starts[e + 1]]`, by ascending id.
+    /// The triangles of edge `e` are `(lo, hi, opposite[i])` for
+    /// `i in starts[e] .. starts[e + 1]`, by ascending opposite vertex.
     pub starts: Vec<usize>,
-    /// Half-edge ids `face * 3 + k`, grouped by edge.
-    pub halfedges: Vec<u32>,
+    /// Opposite vertices, grouped by edge.
+    pub opposite: Vec<u32>,
     /// Faces that repeat a vertex index; they are left out of the table.
     pub index_degenerate_faces: usize,
 }
 
+/// The edges whose smaller vertex lies in one range of vertex indices.
+struct EdgeRange {
+    edges: Vec<[u32; 2]>,
+    starts: Vec<usize>,
+    opposite: Vec<u32>,
+}
+
+/// Builds the edges whose smaller vertex is in `v0..v1`: counting sort of the half-edges
+/// by smaller vertex, then a sort of each (tiny) bucket by `(hi, opposite)`.
+fn edge_range(faces: &[[u32; 3]], v0: usize, v1: usize) -> EdgeRange {
+    let in_range = |lo: u32| (v0..v1).contains(&(lo as usize));
+    let mut bucket_starts = vec![0usize; v1 - v0 + 1];
+    for f in faces {
+        if is_index_degenerate(f) {
+            continue;
+        }
+        for lo in [f[0].min(f[1]), f[1].min(f[2]), f[2].min(f[0])] {
+            if in_range(lo) {
+                bucket_starts[lo as usize - v0 + 1] += 1;
+            }
+        }
+    }
+    for i in 0..v1 - v0 {
+        bucket_starts[i + 1] += bucket_starts[i];
+    }
+    // Entry `hi << 32 | opposite`: sorting a bucket's entries orders it by (hi, opposite).
+    let mut cursor = bucket_starts.clone();
+    let mut entries = vec![0u64; bucket_starts[v1 - v0]];
+    for f in faces {
+        if is_index_degenerate(f) {
+            continue;
+        }
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            let lo = a.min(b);
+            if in_range(lo) {
+                let slot = &mut cursor[lo as usize - v0];
+                entries[*slot] = (u64::from(a.max(b)) << 32) | u64::from(f[(k + 2) % 3]);
+                *slot += 1;
+            }
+        }
+    }
+    let mut edges = Vec::with_capacity(entries.len() / 2 + 1);
+    let mut starts = Vec::with_capacity(entries.len() / 2 + 1);
+    for v in v0..v1 {
+        let (b0, b1) = (bucket_starts[v - v0], bucket_starts[v - v0 + 1]);
+        let bucket = &mut entries[b0..b1];
+        bucket.sort_unstable();
+        let mut i = 0;
+        while i < bucket.len() {
+            let hi = bucket[i] >> 32;
+            edges.push([v as u32, hi as u32]);
+            starts.push(b0 + i);
+            while i < bucket.len() && bucket[i] >> 32 == hi {
+                i += 1;
+            }
+        }
+    }
+    let opposite = entries.iter().map(|&e| e as u32).collect();
+    EdgeRange {
+        edges,
+        starts,
+        opposite,
+    }
+}
+
 impl EdgeTable {
     /// Builds the table. Faces must already be index-checked against the vertex count.
+    ///
+    /// The vertex indices are split into ranges handled in parallel; each range scans all
+    /// faces, so the table is identical for any number of threads.
     pub fn build(faces: &[[u32; 3]], vertex_count: usize) -> Result<Self, MeshError> {
         if faces.len() > (u32::MAX / 3) as usize {
             return Err(MeshError::Parameter(format!(
@@ -94,94 +185,32 @@ impl EdgeTable {
                 u32::MAX / 3
             )));
         }
-        let lo_hi = |h: u32| -> (u32, u32) {
-            let face = &faces[(h / 3) as usize];
-            let k = (h % 3) as usize;
-            let (a, b) = (face[k], face[(k + 1) % 3]);
-            if a < b { (a, b) } else { (b, a) }
-        };
-
-        let mut counts = vec![0usize; vertex_count + 1];
-        let mut index_degenerate_faces = 0;
-        for face in faces {
-            if is_index_degenerate(face) {
-                index_degenerate_faces += 1;
-                continue;
-            }
-            for k in 0..3 {
-                counts[face[k].min(face[(k + 1) % 3]) as usize + 1] += 1;
-            }
-        }
-        for v in 0..vertex_count {
-            counts[v + 1] += counts[v];
-        }
-        let bucket_starts = counts;
-        let mut cursor = bucket_starts.clone();
-        let mut halfedges = vec![0u32; bucket_starts[vertex_count]];
-        for (f, face) in faces.iter().enumerate() {
-            if is_index_degenerate(face) {
-                continue;
-            }
-            for k in 0..3 {
-                let lo = face[k].min(face[(k + 1) % 3]) as usize;
-                halfedges[cursor[lo]] = (f * 3 + k) as u32;
-                cursor[lo] += 1;
-            }
-        }
-        drop(cursor);
-
-        // Split the half-edge array into blocks of whole buckets, sort each bucket by
-        // (hi, id) and collect the edges of each block; blocks are concatenated in order.
-        let mut block_bounds = vec![0usize];
-        let mut next_cut = BUCKET_BLOCK;
-        for v in 0..vertex_count {
-            if bucket_starts[v + 1] >= next_cut {
-                block_bounds.push(v + 1);
-                next_cut = bucket_starts[v + 1] + BUCKET_BLOCK;
-            }
-        }
-        if *block_bounds.last().unwrap_or(&0) != vertex_count {
-            block_bounds.push(vertex_count);
-        }
-        let mut slices: Vec<(usize, usize, &mut [u32])> = Vec::with_capacity(block_bounds.len());
-        let mut rest: &mut [u32] = &mut halfedges;
-        for w in block_bounds.windows(2) {
-            let len = bucket_starts[w[1]] - bucket_starts[w[0]];
-            let (head, tail) = rest.split_at_mut(len);
-            slices.push((w[0], w[1], head));
-            rest = tail;
-        }
-        let blocks: Vec<(Vec<[u32; 2]>, Vec<usize>)> = slices
+        let parts = rayon::current_num_threads().clamp(1, RANGE_PARTS_MAX);
+        let ranges: Vec<EdgeRange> = (0..parts)
             .into_par_iter()
-            .map(|(v0, v1, block)| {
-                let base = bucket_starts[v0];
-                let mut edges = Vec::new();
-                let mut starts = Vec::new();
-                for v in v0..v1 {
-                    let bucket = &mut block[bucket_starts[v] - base..bucket_starts[v + 1] - base];
-                    bucket.sort_unstable_by_key(|&h| (lo_hi(h).1, h));
-                    let mut i = 0;
-                    while i < bucket.len() {
-                        let hi = lo_hi(bucket[i]).1;
-                        edges.push([v as u32, hi]);
-                        starts.push(bucket_starts[v] + i);
-                        while i < bucket.len() && lo_hi(bucket[i]).1 == hi {
-                            i += 1;
-                        }
-                    }
-                }
-                (edges, starts)
+            .map(|p| {
+                edge_range(
+                    faces,
+                    p * vertex_count / parts,
+                    (p + 1) * vertex_count / parts,
+                )
             })
             .collect();
-        let edge_count: usize = blocks.iter().map(|b| b.0.len()).sum();
-        let mut edges = Vec::with_capacity(edge_count);
-        let mut starts = Vec::with_capacity(edge_count + 1);
-        for (block_edges, block_starts) in blocks {
-            edges.extend(block_edges);
-            starts.extend(block_starts);
+        let edge_count = ranges.iter().map(|r| r.edges.len()).sum();
+        let mut table = EdgeTable {
+            edges: Vec::with_capacity(edge_count),
+            starts: Vec::with_capacity(edge_count + 1),
+            opposite: Vec::with_capacity(ranges.iter().map(|r| r.opposite.len()).sum()),
+            index_degenerate_faces: faces.iter().filter(|f| is_index_degenerate(f)).count(),
+        };
+        for range in ranges {
+            let offset = table.opposite.len();
+            table.edges.extend(range.edges);
+            table.starts.extend(range.starts.iter().map(|s| s + offset));
+            table.opposite.extend(range.opposite);
         }
-        starts.push(halfedges.len());
-        Ok(EdgeTable { edges, starts, halfedges, index_degenerate_faces })
+        table.starts.push(table.opposite.len());
+        Ok(table)
     }
 
     /// Number of unique edges.
@@ -198,22 +227,32 @@ impl EdgeTable {
         self.edges.is_empty()
     }
 
-    /// Half-edge ids incident to edge `e`.
+    /// Opposite vertices of the triangles incident to edge `e` (one per triangle).
     #[inline]
     #[must_use]
     pub fn incident(&self, e: usize) -> &[u32] {
-        &self.halfedges[self.starts[e]..self.starts[e + 1]]
+        &self.opposite[self.starts[e]..self.starts[e + 1]]
     }
 
-    /// Checks the table's invariants against the faces it was built from.
+    /// Checks the table's invariants against the faces it was built from: edges strictly
+    /// sorted, every non-degenerate face's three edges present with its opposite vertex,
+    /// and nothing else.
     pub fn validate(&self, faces: &[[u32; 3]]) -> Result<(), String> {
         if self.starts.len() != self.edges.len() + 1 {
             return Err("starts must have one entry more than edges".into());
         }
-        let expected: usize = faces.iter().filter(|f| !is_index_degenerate(f)).count() * 3;
-        if self.halfedges.len() != expected {
-            return Err(format!("{} half-edges, expected {expected}", self.halfedges.len()));
-        }
+        let mut expected: Vec<(u32, u32, u32)> = faces
+            .iter()
+            .filter(|f| !is_index_degenerate(f))
+            .flat_map(|f| {
+                (0..3).map(move |k| {
+                    let (a, b) = (f[k], f[(k + 1) % 3]);
+                    (a.min(b), a.max(b), f[(k + 2) % 3])
+                })
+            })
+            .collect();
+        expected.sort_unstable();
+        let mut found = Vec::with_capacity(self.opposite.len());
         for (e, edge) in self.edges.iter().enumerate() {
             if edge[0] >= edge[1] {
                 return Err(format!("edge {e} is not ordered lo < hi"));
@@ -221,18 +260,13 @@ impl EdgeTable {
             if e > 0 && self.edges[e - 1] >= *edge {
                 return Err(format!("edges {} and {e} are not strictly sorted", e - 1));
             }
-            let incident = self.incident(e);
-            if incident.is_empty() {
-                return Err(format!("edge {e} has no half-edge"));
+            if self.incident(e).is_empty() {
+                return Err(format!("edge {e} has no triangle"));
             }
-            for &h in incident {
-                let face = faces[(h / 3) as usize];
-                let k = (h % 3) as usize;
-                let (a, b) = (face[k], face[(k + 1) % 3]);
-                if [a.min(b), a.max(b)] != *edge {
-                    return Err(format!("half-edge {h} is filed under the wrong edge {e}"));
-                }
-            }
+            found.extend(self.incident(e).iter().map(|&o| (edge[0], edge[1], o)));
+        }
+        if found != expected {
+            return Err("the table's (edge, opposite) triples differ from the faces'".into());
         }
         Ok(())
     }
@@ -281,7 +315,12 @@ mod tests {
 
     #[test]
     fn weld_maps_to_smallest_index_and_folds_signed_zero() {
-        let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [-0.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
+        let v = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [-0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+        ];
         let weld = weld_identical(&v);
         assert_eq!(weld.canonical, vec![0, 1, 0, 1]);
         assert_eq!(weld.merged, 2);

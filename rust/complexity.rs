@@ -29,8 +29,6 @@
 //! (π minus the interior dihedral angle, winding independent). Its sum is the integral of
 //! the mean curvature, which equals `∫ dA / r` on a sphere.
 
-use std::f64::consts::PI;
-
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -65,7 +63,11 @@ pub struct Tolerances {
 
 impl Default for Tolerances {
     fn default() -> Self {
-        Tolerances { flat_angle: 1e-12, ill_angle: 1e-3, ill_cocircular: 1e-3 }
+        Tolerances {
+            flat_angle: 1e-12,
+            ill_angle: 1e-3,
+            ill_cocircular: 1e-3,
+        }
     }
 }
 
@@ -89,8 +91,10 @@ pub struct EdgeGeometry {
     pub radius: f64,
     /// `p(e)`, a third of the two triangles' areas (area).
     pub weight: f64,
-    /// Bending angle `φ` in `[0, π]` (radians).
-    pub bending: f64,
+    /// `|n1 × n2|` and `-n1 · n2` for the normals `n1 = u × v`, `n2 = u × w`: the bending
+    /// angle is `atan2` of the two (area² · sin φ and area² · cos φ, up to a factor 4).
+    bend_sin: f64,
+    bend_cos: f64,
     /// Edge length (length).
     pub length: f64,
 }
@@ -107,24 +111,40 @@ fn circumcentre_offset(u: DVec3, v: DVec3, n: DVec3) -> DVec3 {
 pub fn edge_geometry(a: DVec3, b: DVec3, c: DVec3, d: DVec3, tol: &Tolerances) -> EdgeGeometry {
     let (u, v, w) = (b - a, c - a, d - a);
     let (n1, n2) = (u.cross(v), u.cross(w));
-    let weight = (n1.length() + n2.length()) / 6.0;
+    let (l1, l2) = (n1.length(), n2.length());
+    let weight = (l1 + l2) / 6.0;
     let length = u.length();
-    let bending = n1.cross(n2).length().atan2(-n1.dot(n2));
-    let degenerate = EdgeGeometry { kind: EdgeKind::Degenerate, radius: f64::INFINITY, weight, bending: 0.0, length };
-    if length == 0.0 || n1 == DVec3::ZERO || n2 == DVec3::ZERO || c == d {
-        return degenerate;
+    let bend_sin = n1.cross(n2).length();
+    let bend_cos = -n1.dot(n2);
+    let mut g = EdgeGeometry {
+        kind: EdgeKind::Degenerate,
+        radius: f64::INFINITY,
+        weight,
+        bend_sin,
+        bend_cos,
+        length,
+    };
+    if length == 0.0 || l1 == 0.0 || l2 == 0.0 || c == d {
+        g.bend_sin = 0.0;
+        return g;
     }
-    if bending <= tol.flat_angle {
-        return EdgeGeometry { kind: EdgeKind::Flat, radius: f64::INFINITY, weight, bending, length };
+    // φ ≤ flat_angle  ⇔  cos φ > 0 and sin φ ≤ sin(flat_angle), without an atan2.
+    let scale = l1 * l2;
+    if bend_cos > 0.0 && bend_sin <= tol.flat_angle.sin() * scale {
+        g.kind = EdgeKind::Flat;
+        return g;
     }
     let det = u.dot(v.cross(w));
     let centre = (u.length_squared() * v.cross(w)
         + v.length_squared() * w.cross(u)
         + w.length_squared() * u.cross(v))
         / (2.0 * det);
-    let radius = if det != 0.0 && centre.is_finite() { centre.length() } else { f64::INFINITY };
-    let near_coplanar = bending.min(PI - bending) < tol.ill_angle;
-    let kind = if near_coplanar
+    if det != 0.0 && centre.is_finite() {
+        g.radius = centre.length();
+    }
+    // min(φ, π - φ) < ill_angle  ⇔  sin φ < sin(ill_angle) (for ill_angle < π/2).
+    let near_coplanar = bend_sin < tol.ill_angle.sin() * scale;
+    g.kind = if near_coplanar
         && (circumcentre_offset(u, v, n1) - circumcentre_offset(u, w, n2)).length()
             < tol.ill_cocircular * length
     {
@@ -132,21 +152,25 @@ pub fn edge_geometry(a: DVec3, b: DVec3, c: DVec3, d: DVec3, tol: &Tolerances) -
     } else {
         EdgeKind::Curved
     };
-    EdgeGeometry { kind, radius, weight, bending, length }
+    g
 }
 
 impl EdgeGeometry {
+    /// Bending angle `φ = π - dihedral angle`, in `[0, π]` (radians); winding independent.
+    #[inline]
+    #[must_use]
+    pub fn bending(&self) -> f64 {
+        self.bend_sin.atan2(self.bend_cos)
+    }
+
     /// This edge's estimate of `p(e) / r(e)` (length).
     #[inline]
     #[must_use]
     pub fn contribution(&self, estimator: Estimator) -> f64 {
-        let dihedral = self.bending * self.length / 2.0;
         match (self.kind, estimator) {
-            (EdgeKind::Curved | EdgeKind::IllConditioned, Estimator::Circumsphere) => {
-                self.weight / self.radius
-            }
-            (EdgeKind::Curved, Estimator::Hybrid) => self.weight / self.radius,
-            (EdgeKind::Curved | EdgeKind::IllConditioned, _) => dihedral,
+            (EdgeKind::Curved | EdgeKind::IllConditioned, Estimator::Circumsphere)
+            | (EdgeKind::Curved, Estimator::Hybrid) => self.weight / self.radius,
+            (EdgeKind::Curved | EdgeKind::IllConditioned, _) => self.bending() * self.length / 2.0,
             _ => 0.0,
         }
     }
@@ -190,7 +214,10 @@ pub struct Complexity {
 /// Sums in fixed chunks so the result does not depend on the number of threads.
 #[must_use]
 pub fn deterministic_sum(values: &[f64]) -> f64 {
-    let partial: Vec<f64> = values.par_chunks(SUM_CHUNK).map(|c| c.iter().sum::<f64>()).collect();
+    let partial: Vec<f64> = values
+        .par_chunks(SUM_CHUNK)
+        .map(|c| c.iter().sum::<f64>())
+        .collect();
     partial.iter().sum()
 }
 
@@ -240,11 +267,14 @@ pub fn shape_complexity(
         .par_iter()
         .map(|f| {
             let a = point(vertices, f[0]);
-            (point(vertices, f[1]) - a).cross(point(vertices, f[2]) - a).length() / 2.0
+            (point(vertices, f[1]) - a)
+                .cross(point(vertices, f[2]) - a)
+                .length()
+                / 2.0
         })
         .collect();
     let area = deterministic_sum(&face_areas);
-    if !(area > 0.0) {
+    if area.is_nan() || area <= 0.0 {
         return Err(MeshError::Empty(format!(
             "mesh has zero surface area: all {} faces are degenerate",
             faces.len()
@@ -253,45 +283,57 @@ pub fn shape_complexity(
     let (bbox_min, bbox_max) = referenced_bbox(vertices, faces);
 
     let table = EdgeTable::build(faces, vertices.len())?;
-    let opposite = |h: u32| {
-        let face = &faces[(h / 3) as usize];
-        face[((h % 3) as usize + 2) % 3]
+    let interior_geometry = |e: usize| -> Option<EdgeGeometry> {
+        match table.incident(e) {
+            &[c, d] => {
+                let [lo, hi] = table.edges[e];
+                Some(edge_geometry(
+                    point(vertices, lo),
+                    point(vertices, hi),
+                    point(vertices, c),
+                    point(vertices, d),
+                    tol,
+                ))
+            }
+            _ => None,
+        }
     };
-    let geometry: Vec<(EdgeKind, Option<EdgeGeometry>)> = (0..table.len())
+    let kind_of = |e: usize, g: &Option<EdgeGeometry>| match g {
+        Some(g) => g.kind,
+        None if table.incident(e).len() == 1 => EdgeKind::Boundary,
+        None => EdgeKind::NonManifold,
+    };
+    let (kinds, contributions): (Vec<u8>, Vec<f64>) = (0..table.len())
         .into_par_iter()
         .map(|e| {
-            let incident = table.incident(e);
-            match incident.len() {
-                1 => (EdgeKind::Boundary, None),
-                2 => {
-                    let [lo, hi] = table.edges[e];
-                    let g = edge_geometry(
-                        point(vertices, lo),
-                        point(vertices, hi),
-                        point(vertices, opposite(incident[0])),
-                        point(vertices, opposite(incident[1])),
-                        tol,
-                    );
-                    (g.kind, Some(g))
-                }
-                _ => (EdgeKind::NonManifold, None),
-            }
+            let g = interior_geometry(e);
+            (
+                kind_of(e, &g) as u8,
+                g.map_or(0.0, |g| g.contribution(estimator)),
+            )
         })
-        .collect();
-    let contributions: Vec<f64> =
-        geometry.par_iter().map(|(_, g)| g.map_or(0.0, |g| g.contribution(estimator))).collect();
+        .unzip();
     let k_raw = deterministic_sum(&contributions);
 
-    let count = |kind: EdgeKind| geometry.iter().filter(|(k, _)| *k == kind).count();
-    let boundary_edges = count(EdgeKind::Boundary);
-    let nonmanifold_edges = count(EdgeKind::NonManifold);
-    let per_edge = per_edge.then(|| EdgeArrays {
-        vertices: table.edges.clone(),
-        kind: geometry.iter().map(|(k, _)| *k as u8).collect(),
-        radius: geometry.iter().map(|(_, g)| g.map_or(f64::NAN, |g| g.radius)).collect(),
-        weight: geometry.iter().map(|(_, g)| g.map_or(f64::NAN, |g| g.weight)).collect(),
-        contribution: contributions,
+    let mut count = [0usize; 6];
+    for &kind in &kinds {
+        count[kind as usize] += 1;
+    }
+    let per_edge = per_edge.then(|| {
+        let (radius, weight): (Vec<f64>, Vec<f64>) = (0..table.len())
+            .into_par_iter()
+            .map(|e| interior_geometry(e).map_or((f64::NAN, f64::NAN), |g| (g.radius, g.weight)))
+            .unzip();
+        EdgeArrays {
+            vertices: table.edges.clone(),
+            kind: kinds,
+            radius,
+            weight,
+            contribution: contributions,
+        }
     });
+    let boundary_edges = count[EdgeKind::Boundary as usize];
+    let nonmanifold_edges = count[EdgeKind::NonManifold as usize];
     Ok(Complexity {
         k_raw,
         area,
@@ -301,9 +343,9 @@ pub fn shape_complexity(
         interior_edges: table.len() - boundary_edges - nonmanifold_edges,
         boundary_edges,
         nonmanifold_edges,
-        flat_edges: count(EdgeKind::Flat),
-        ill_conditioned_edges: count(EdgeKind::IllConditioned),
-        degenerate_edges: count(EdgeKind::Degenerate),
+        flat_edges: count[EdgeKind::Flat as usize],
+        ill_conditioned_edges: count[EdgeKind::IllConditioned as usize],
+        degenerate_edges: count[EdgeKind::Degenerate as usize],
         merged_vertices,
         degenerate_faces: table.index_degenerate_faces,
         per_edge,
@@ -370,7 +412,7 @@ mod tests {
         let d = DVec3::new(0.4, -1.0, 0.3);
         let g1 = edge_geometry(a, b, c, d, &tol());
         let g2 = edge_geometry(b, a, d, c, &tol());
-        assert!((g1.bending - g2.bending).abs() < 1e-14);
+        assert!((g1.bending() - g2.bending()).abs() < 1e-14);
         assert!((g1.radius - g2.radius).abs() < 1e-12 * g1.radius);
     }
 

@@ -13,7 +13,11 @@ pub enum MeshError {
     /// A vertex coordinate is NaN or infinite.
     NonFinite { vertex: usize },
     /// A face refers to a vertex index `>= vertex_count`.
-    IndexOutOfRange { face: usize, index: u64, vertex_count: usize },
+    IndexOutOfRange {
+        face: usize,
+        index: u64,
+        vertex_count: usize,
+    },
     /// No vertices or no faces where some are required.
     Empty(String),
     /// A parameter outside its documented range (bits, sample counts, tolerances...).
@@ -29,7 +33,11 @@ impl fmt::Display for MeshError {
             MeshError::NonFinite { vertex } => {
                 write!(f, "vertex {vertex} has a NaN or infinite coordinate")
             }
-            MeshError::IndexOutOfRange { face, index, vertex_count } => write!(
+            MeshError::IndexOutOfRange {
+                face,
+                index,
+                vertex_count,
+            } => write!(
                 f,
                 "face {face} refers to vertex {index}, but there are only {vertex_count} vertices"
             ),
@@ -46,7 +54,10 @@ impl std::error::Error for MeshError {}
 
 /// Checks that every coordinate is finite; names the first offending vertex.
 pub fn check_finite(vertices: &[[f64; 3]]) -> Result<(), MeshError> {
-    match vertices.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+    match vertices
+        .iter()
+        .position(|v| !v.iter().all(|c| c.is_finite()))
+    {
         Some(vertex) => Err(MeshError::NonFinite { vertex }),
         None => Ok(()),
     }

@@ -17,7 +17,12 @@ use pyo3::types::PyDict;
 use crate::complexity::{self, Estimator, Tolerances};
 use crate::error::MeshError;
 
-create_exception!(_core, MeshbitsError, PyValueError, "Invalid input to a meshbits kernel.");
+create_exception!(
+    _core,
+    MeshbitsError,
+    PyValueError,
+    "Invalid input to a meshbits kernel."
+);
 
 /// Worker threads for kernels: 0 means rayon's global pool.
 static THREADS: AtomicUsize = AtomicUsize::new(0);
@@ -57,7 +62,9 @@ where
                 .map(|s| s.to_string())
                 .or_else(|| panic.downcast_ref::<String>().cloned())
                 .unwrap_or_else(|| "unknown panic".into());
-            Err(PyRuntimeError::new_err(format!("meshbits internal error (please report): {what}")))
+            Err(PyRuntimeError::new_err(format!(
+                "meshbits internal error (please report): {what}"
+            )))
         }
     }
 }
@@ -75,7 +82,9 @@ fn triples<'a, T: numpy::Element>(
         )));
     }
     if !array.is_c_contiguous() {
-        return Err(PyValueError::new_err(format!("{name} must be C-contiguous")));
+        return Err(PyValueError::new_err(format!(
+            "{name} must be C-contiguous"
+        )));
     }
     let flat = array
         .as_slice()
@@ -112,7 +121,11 @@ fn shape_complexity<'py>(
     ill_cocircular: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let estimator = parse_estimator(estimator)?;
-    let tol = Tolerances { flat_angle, ill_angle, ill_cocircular };
+    let tol = Tolerances {
+        flat_angle,
+        ill_angle,
+        ill_cocircular,
+    };
     let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
     let c = run_detached(py, || {
         complexity::shape_complexity(v, f, estimator, merge_vertices, per_edge, &tol)
@@ -158,7 +171,14 @@ fn get_num_threads() -> usize {
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MeshbitsError", m.py().get_type::<MeshbitsError>())?;
-    m.add("BUILD_PROFILE", if cfg!(debug_assertions) { "debug" } else { "release" })?;
+    m.add(
+        "BUILD_PROFILE",
+        if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        },
+    )?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(shape_complexity, m)?)?;
     m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;

@@ -1,0 +1,82 @@
+"""The ``meshbits`` command line: JSON output, human output, and one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from meshbits.cli import main
+
+DATA = Path(__file__).parent / "data"
+
+
+def run_json(capsys, *argv: str) -> dict:
+    assert main([*argv, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_k_json_has_documented_keys(capsys):
+    out = run_json(capsys, "k", str(DATA / "bunny.ply"))
+    for key in (
+        "k",
+        "k_area",
+        "k_raw",
+        "grid_size",
+        "area",
+        "edges",
+        "interior_edges",
+        "boundary_edges",
+        "nonmanifold_edges",
+        "flat_edges",
+        "ill_conditioned_edges",
+        "merged_vertices",
+        "vertices",
+        "faces",
+        "mesh",
+        "estimator",
+    ):
+        assert key in out
+    assert out["k_area"] == pytest.approx(54.39, rel=0.01)
+
+
+def test_k_estimator_flag(capsys):
+    out = run_json(capsys, "k", str(DATA / "fandisk.ply"), "--estimator", "hybrid")
+    assert out["estimator"] == "hybrid"
+
+
+def test_k_human_output(capsys):
+    assert main(["k", str(DATA / "suzanne.ply")]) == 0
+    text = capsys.readouterr().out
+    assert "K (area, /sqrt(A))" in text and "boundary" in text
+
+
+def test_demo_runs_on_the_bundled_mesh(capsys):
+    assert main(["demo"]) == 0
+    assert "spot.ply" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("content", [b"", b"this is not a mesh", b"ply\nformat nonsense\n"])
+def test_bad_files_give_one_line_error_and_exit_2(tmp_path, capsys, content):
+    path = tmp_path / "broken.ply"
+    path.write_bytes(content)
+    assert main(["k", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("meshbits k: error:") and err.count("\n") == 1
+
+
+def test_missing_file_exits_2(capsys):
+    assert main(["k", "/nonexistent/mesh.ply"]) == 2
+    assert "no such mesh file" in capsys.readouterr().err
+
+
+def test_console_script_runs():
+    out = subprocess.run(
+        [sys.executable, "-m", "meshbits.cli", "k", str(DATA / "bunny_res4.ply"), "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert json.loads(out.stdout)["faces"] == 948
