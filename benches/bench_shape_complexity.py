@@ -21,8 +21,9 @@ import trimesh
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
-import meshbits  # noqa: E402
 import reference  # noqa: E402
+
+import meshbits  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "meshes"
 

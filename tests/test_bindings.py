@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from meshbits import MeshbitsError, _core
 
 TOL = (1e-12, 1e-3, 1e-3)

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import math
 
-import meshbits
 import numpy as np
 import pytest
 import reference
 import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+import meshbits
 from meshbits import shape_complexity
 
 COUNTS = (

@@ -1,0 +1,95 @@
+"""Real encoders (Draco, quantized PLY), the size-model fit, and simplification."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshbits.encode import encode_draco, encode_quantized_ply, fit_size_model
+from meshbits.simplify import closest_level, referenced_vertex_count, simplify
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.floats(1 / 3, 1.0),
+    st.floats(0.0, 8.0),
+    st.floats(0.0, 0.02),
+    st.integers(0, 2**32 - 1),
+)
+def test_fit_recovers_known_alpha_and_t(alpha, t, noise, seed):
+    rng = np.random.default_rng(seed)
+    bits = rng.integers(4, 17, size=40).astype(float)
+    vertices = rng.integers(100, 100_000, size=40).astype(float)
+    sizes = (3 * alpha * bits + t) * vertices * (1 + rng.normal(scale=noise, size=40))
+    fit = fit_size_model(bits, vertices, sizes)
+    exact = noise == 0.0
+    assert fit.alpha == pytest.approx(
+        alpha, rel=1e-9 if exact else 0.1, abs=1e-9 if exact else 0.05
+    )
+    assert fit.connectivity_bits == pytest.approx(t, abs=1e-7 if exact else 1.0)
+    assert fit.relative_rms <= 1e-9 if exact else fit.relative_rms < 0.1
+
+
+def test_fit_refuses_a_single_bit_depth():
+    with pytest.raises(ValueError, match="two or more bit depths"):
+        fit_size_model([8, 8], [100, 200], [3000, 6000])
+
+
+def test_draco_uses_the_paper_grid(bunny):
+    vertices, faces = bunny
+    bits = 10
+    encoded = encode_draco((vertices, faces), bits)
+    used = np.unique(faces)
+    lo = vertices[used].min(axis=0)
+    step = (vertices[used].max(axis=0) - lo).max() / (2**bits - 1)
+    codes = (encoded.vertices - lo) / step
+    # Decoded positions sit on the grid; Draco stores origin and range as float32, which
+    # shifts them by a few thousandths of a step.
+    assert np.abs(codes - np.rint(codes)).max() < 1e-2
+    assert len(encoded.faces) == len(faces)
+    assert len(encoded.vertices) == len(used)  # Draco drops unreferenced vertices
+    assert encoded.size_bits == 8 * len(encoded.data)
+
+
+def test_draco_size_grows_with_bits(bunny):
+    sizes = [encode_draco(bunny, bits).size_bytes for bits in (6, 10, 14)]
+    assert sizes[0] < sizes[1] < sizes[2]
+
+
+def test_quantized_ply_round_trips_through_trimesh(tmp_path, bunny):
+    encoded = encode_quantized_ply(bunny, 8)
+    path = encoded.write(tmp_path / "q.ply")
+    loaded = trimesh.load(path, process=False)
+    np.testing.assert_array_equal(np.asarray(loaded.faces), encoded.faces)
+    np.testing.assert_allclose(np.asarray(loaded.vertices), encoded.vertices, rtol=0, atol=0)
+    assert len(np.unique(encoded.vertices[:, 0])) <= 2**8
+
+
+@pytest.mark.parametrize("bits", [0, 31, 8.5])
+def test_bad_bits(bunny, bits):
+    with pytest.raises(ValueError, match="bits must be an integer"):
+        encode_draco(bunny, bits)
+
+
+def test_simplify_reaches_the_target(bunny):
+    vertices, faces = simplify(bunny, 2000)
+    assert abs(len(vertices) - 2000) <= 0.05 * 2000
+    assert referenced_vertex_count(faces) == len(vertices)
+
+
+def test_simplify_keeps_a_mesh_already_small_enough(bunny):
+    vertices, faces = simplify(bunny, 10**7)
+    assert len(faces) == len(bunny[1])
+    assert len(vertices) == referenced_vertex_count(bunny[1])
+
+
+def test_closest_level_on_a_log_scale():
+    levels = [trimesh.creation.icosphere(subdivisions=s) for s in range(1, 5)]  # 42..2562 vertices
+    assert closest_level(levels, 40) == 0
+    assert closest_level(levels, 600) == 2  # 642 vertices
+    assert closest_level(levels, 10**6) == 3
+    with pytest.raises(ValueError, match="lods is empty"):
+        closest_level([], 100)
