@@ -9,21 +9,34 @@ from __future__ import annotations
 
 import os
 
-from . import _core
+from . import _core, model
 from ._core import MeshbitsError
 from .complexity import ShapeComplexity, shape_complexity
 from .io import example_mesh_path, load_mesh, save_mesh
+from .model import (
+    Allocation,
+    guaranteed_bits,
+    plan_for_error,
+    plan_for_size,
+    plan_for_vertices,
+)
 from .threads import get_num_threads, set_num_threads, threads
 
 __version__: str = _core.__version__
 
 __all__ = [
+    "Allocation",
     "MeshbitsError",
     "ShapeComplexity",
     "__version__",
     "example_mesh_path",
     "get_num_threads",
+    "guaranteed_bits",
     "load_mesh",
+    "model",
+    "plan_for_error",
+    "plan_for_size",
+    "plan_for_vertices",
     "save_mesh",
     "set_num_threads",
     "shape_complexity",

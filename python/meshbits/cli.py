@@ -17,6 +17,7 @@ from typing import Any
 from .complexity import shape_complexity
 from .constants import ESTIMATORS
 from .io import example_mesh_path, load_mesh
+from .model import METHODS, parse_size, plan_for_error, plan_for_size, plan_for_vertices
 
 __all__ = ["main"]
 
@@ -97,7 +98,155 @@ def _run_demo(args: argparse.Namespace) -> int:
     return _run_k(args)
 
 
-_COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (_add_k, _add_demo)
+def _b0_arg(text: str) -> float | str:
+    if text in ("derived", "paper"):
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected 'derived', 'paper' or a number, got {text!r}"
+        ) from None
+
+
+def _add_plan(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "plan",
+        help="optimal bits per coordinate B and vertex count V for a budget (paper Sec. 6)",
+        description="Compute K of MESH, then the B and V of least error for a size, of least "
+        "size for an error, or the best B for a vertex count.",
+    )
+    p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
+    budget = p.add_mutually_exclusive_group(required=True)
+    budget.add_argument(
+        "--size", help="file size budget with a unit: 100KB, 2MiB, 800kbit (B = bytes)"
+    )
+    budget.add_argument(
+        "--error",
+        type=float,
+        help="error budget, in mesh units (or a fraction of S with --relative)",
+    )
+    budget.add_argument("--vertices", type=float, help="vertex count V")
+    p.add_argument(
+        "--relative",
+        action="store_true",
+        help="--error is a fraction of S, the largest bounding-box side",
+    )
+    p.add_argument("--alpha", type=float, default=1.0, help="coordinate compression, (0, 1]")
+    p.add_argument(
+        "--connectivity-bits", type=float, default=4.0, help="T, bits per vertex (default 4)"
+    )
+    p.add_argument("--method", choices=METHODS, default="exact")
+    p.add_argument(
+        "--b0",
+        type=_b0_arg,
+        default="derived",
+        help="B0 of the asymptotic method: derived (1.6412), paper (1.838) or a number",
+    )
+    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere")
+    p.add_argument("--no-merge", action="store_true", help="do not weld identical vertices")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=_run_plan)
+
+
+def _run_plan(args: argparse.Namespace) -> int:
+    if args.relative and args.error is None:
+        raise UserError("--relative applies to --error only")
+    report = _complexity_report(args.mesh, args)
+    k, grid_size = report["k"], report["grid_size"]
+    if not k > 0:
+        raise UserError(f"K of {args.mesh} is {k}: a flat or open mesh has no plan")
+    options = {
+        "grid_size": grid_size,
+        "alpha": args.alpha,
+        "connectivity_bits": args.connectivity_bits,
+        "method": args.method,
+        "b0": args.b0,
+    }
+    if args.size is not None:
+        budget_text = args.size
+        plan = plan_for_size(parse_size(args.size), k, **options)
+    elif args.error is not None:
+        error = args.error * grid_size if args.relative else args.error
+        budget_text = f"{args.error:g}" + (" x S" if args.relative else " (mesh units)")
+        plan = plan_for_error(error, k, **options)
+    else:
+        budget_text = f"{args.vertices:g}"
+        plan = plan_for_vertices(args.vertices, k, **options)
+    if args.json:
+        _print_json(
+            {
+                "mesh": report["mesh"],
+                "mesh_vertices": report["vertices"],
+                "mesh_faces": report["faces"],
+                "estimator": report["estimator"],
+                **plan.to_dict(),
+            }
+        )
+        return EXIT_OK
+    print(f"{report['mesh']}: {report['vertices']} vertices, {report['faces']} faces")
+    print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} (mesh units)")
+    method = plan.method if plan.b0 is None else f"{plan.method}, B0 = {plan.b0:.4g}"
+    print(f"  constraint: {plan.constraint} = {budget_text} (method {method})")
+    header = ("", "B (bits)", "V", "F (bits)", "E_Q", "E_T", "E", "E/S")
+    rows = [
+        (
+            "continuous",
+            f"{plan.bits:.4f}",
+            plan.vertices,
+            plan.file_size,
+            plan.quantization_error,
+            plan.tessellation_error,
+            plan.error,
+        ),
+        (
+            "whole bits",
+            str(plan.whole_bits),
+            plan.whole_vertices,
+            plan.whole_file_size,
+            plan.whole_quantization_error,
+            plan.whole_tessellation_error,
+            plan.whole_error,
+        ),
+    ]
+    table = [header] + [
+        (
+            name,
+            b,
+            f"{v:.1f}",
+            f"{f:.6g}",
+            f"{q:.4g}",
+            f"{t:.4g}",
+            f"{e:.4g}",
+            f"{e / grid_size:.4g}",
+        )
+        for name, b, v, f, q, t, e in rows
+    ]
+    widths = [max(len(row[i]) for row in table) for i in range(len(header))]
+    for row in table:
+        print(
+            "  "
+            + "  ".join(
+                cell.rjust(w) if i else cell.ljust(w)
+                for i, (cell, w) in enumerate(zip(row, widths, strict=True))
+            )
+        )
+    print(
+        f"  plan: keep about {round(plan.whole_vertices)} vertices, quantize to "
+        f"{plan.whole_bits} bits per coordinate ({plan.whole_file_size / 8000:.4g} kB)"
+    )
+    if plan.whole_vertices > report["vertices"]:
+        print(f"  note: the mesh has only {report['vertices']} vertices")
+    if not plan.in_model_domain:
+        print(f"  warning: outside the model's domain: {plan.domain_reason}")
+    return EXIT_OK
+
+
+_COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
+    _add_k,
+    _add_demo,
+    _add_plan,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

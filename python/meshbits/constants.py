@@ -20,3 +20,23 @@ ILL_COCIRCULAR = 1e-3
 
 #: Estimators of the per-edge term p(e)/r(e) of K.
 ESTIMATORS = ("circumsphere", "dihedral", "hybrid")
+
+# --- The bit-allocation model (meshbits.model) ---------------------------------------
+
+#: Smallest sphere-equivalent vertex count ``V_S = 4 pi V / K`` at which the sphere model
+#: of the tessellation error (paper Eq. 10, 11) is trusted: there ``theta = 1.10`` rad. A
+#: plan below it is returned with ``in_model_domain = False``.
+MODEL_MIN_SPHERE_VERTICES = 12.0
+
+#: Fewest vertices of a closed triangle mesh (a tetrahedron). A size budget that cannot
+#: hold this many vertices at :data:`MODEL_MIN_BITS` bits per coordinate is refused; a
+#: plan with fewer (continuous) vertices is flagged out of the model's domain.
+MODEL_MIN_VERTICES = 4.0
+
+#: Fewest bits per coordinate (bits) any plan uses: one bit puts each coordinate on
+#: one of two grid planes.
+MODEL_MIN_BITS = 1.0
+
+#: The paper's printed constant ``B0`` of Eq. 13-15 (bits). The value derived from the
+#: paper's own definitions is ``log2(4.5 ln 2) = 1.6412`` (``meshbits.model.DERIVED_B0``).
+PAPER_B0 = 1.838
