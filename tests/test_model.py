@@ -13,14 +13,15 @@ import math
 import re
 from pathlib import Path
 
-import meshbits
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from scipy.optimize import brentq
+
+import meshbits
 from meshbits import model
 from meshbits.cli import main
-from scipy.optimize import brentq
 
 DATA = Path(__file__).parent / "data"
 DOCS = Path(__file__).parent.parent / "docs" / "model.md"
