@@ -86,16 +86,188 @@ def _run_k(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+#: Budget of ``meshbits demo``: the symmetric Hausdorff error, relative to the grid size S.
+DEMO_RELATIVE_ERROR = 0.002
+
+
 def _add_demo(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="run meshbits on the example mesh shipped in the package")
+    p = sub.add_parser(
+        "demo",
+        help="compress the example mesh shipped in the package to an error budget",
+        description="Run `meshbits compress` on Spot (public domain, shipped in the package) "
+        f"with an error budget of {DEMO_RELATIVE_ERROR} of its largest bounding-box side, and "
+        "say what it did.",
+    )
+    p.add_argument("-o", "--output", type=Path, help="also write the result (.drc, .ply, .glb)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=_run_demo)
 
 
 def _run_demo(args: argparse.Namespace) -> int:
     args.mesh = example_mesh_path()
-    args.estimator, args.no_merge = "circumsphere", False
-    return _run_k(args)
+    args.size, args.error, args.vertices, args.relative = None, DEMO_RELATIVE_ERROR, None, True
+    args.lods, args.alpha, args.connectivity_bits = None, None, None
+    args.max_iterations, args.samples, args.seed = 6, None, 0
+    args.estimator, args.quiet = "circumsphere", args.json
+    if not args.json:
+        print(f"meshbits demo: compressing {args.mesh.name} (Spot by Keenan Crane, public "
+              f"domain) to a Hausdorff error of at most {DEMO_RELATIVE_ERROR} x its largest "
+              "bounding-box side")
+    return _run_compress(args)
+
+
+_FORMATS = {".drc": "draco", ".ply": "ply"}
+_TRIMESH_FORMATS = (".glb", ".gltf", ".obj", ".off", ".stl")
+
+
+def _add_compress(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "compress",
+        help="simplify + quantize + encode a mesh to meet a budget (paper Sec. 7)",
+        description="Compute K, solve for B and V, simplify to V, quantize to B bits, encode "
+        "with Draco, measure the Hausdorff error and the real size; adjust and repeat until "
+        "the budget is met. Exit code 1 when it cannot be met.",
+    )
+    p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
+    budget = p.add_mutually_exclusive_group(required=True)
+    budget.add_argument("--size", help="file size budget with a unit: 100KB, 2MiB, 800kbit")
+    budget.add_argument(
+        "--error", type=float, help="Hausdorff error budget, in mesh units (or with --relative)"
+    )
+    budget.add_argument("--vertices", type=int, help="vertex count V")
+    p.add_argument(
+        "--relative", action="store_true", help="--error is a fraction of S (largest bbox side)"
+    )
+    p.add_argument(
+        "-o", "--output", type=Path,
+        help="output file: .drc (Draco), .ply (quantized PLY); .glb/.obj/.off/.stl through "
+        "trimesh (not with --size: their size is not what the loop measures)",
+    )
+    p.add_argument("--lods", type=Path, nargs="+", help="levels of detail to pick from")
+    p.add_argument("--alpha", type=float, help="size model alpha (default: fitted to Draco)")
+    p.add_argument("--connectivity-bits", type=float, help="size model T (default: Draco fit)")
+    p.add_argument("--max-iterations", type=int, default=6)
+    p.add_argument("--samples", type=int, help="Hausdorff samples per mesh (default: scaled)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere")
+    p.add_argument("--quiet", action="store_true", help="no per-iteration lines on stderr")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=_run_compress)
+
+
+def _run_compress(args: argparse.Namespace) -> int:
+    from .compress import compress
+    from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS
+    from .io import save_mesh
+
+    if args.relative and args.error is None:
+        raise UserError("--relative applies to --error only")
+    output = args.output
+    suffix = output.suffix.lower() if output else ".drc"
+    if suffix not in _FORMATS and suffix not in _TRIMESH_FORMATS:
+        raise UserError(f"cannot write {output}: use .drc, .ply, " + ", ".join(_TRIMESH_FORMATS))
+    if suffix in _TRIMESH_FORMATS and args.size is not None:
+        raise UserError(f"--size needs a .drc or .ply output; {suffix} sizes are not measured")
+    size = parse_size(args.size) if args.size is not None else None
+    mesh = load_mesh(args.mesh)
+    lods = [load_mesh(path) for path in args.lods] if args.lods else None
+
+    def report(it: Any) -> None:
+        if not args.quiet:
+            print(f"  pass: B = {it.bits}, V = {it.vertices} (planned {it.planned_vertices}); "
+                  f"error {it.measured_error:.4g} (model {it.predicted_error:.4g}), "
+                  f"{it.measured_size_bits // 8} bytes (model {it.predicted_size_bits / 8:.0f})"
+                  f"{'' if it.met else ': misses the budget'}", file=sys.stderr)
+
+    result = compress(
+        mesh,
+        size=size,
+        error=args.error,
+        vertices=args.vertices,
+        relative=args.relative,
+        lods=lods,
+        format=_FORMATS.get(suffix, "draco"),
+        alpha=DRACO_ALPHA if args.alpha is None else args.alpha,
+        connectivity_bits=(
+            DRACO_CONNECTIVITY_BITS if args.connectivity_bits is None else args.connectivity_bits
+        ),
+        max_iterations=args.max_iterations,
+        samples=args.samples,
+        seed=args.seed,
+        estimator=args.estimator,
+        progress=report,
+    )
+    if output is not None:
+        if suffix in _FORMATS:
+            result.write(output)
+        else:
+            save_mesh(output, result.vertices, result.faces)
+    payload = {"mesh": str(args.mesh), "output": str(output) if output else None,
+               **result.to_dict()}
+    if args.json:
+        _print_json(payload)
+    else:
+        first = result.plan
+        _print_table(
+            f"{args.mesh}: {len(mesh[0])} vertices, {len(mesh[1])} faces; "
+            f"K = {result.complexity.k:.4g}, S = {result.complexity.grid_size:.6g}",
+            [
+                ("budget", f"{result.budget:.6g} ({result.constraint})"),
+                ("first plan", f"B = {first.whole_bits}, V = {first.whole_vertices:.0f}"),
+                ("chosen", f"B = {result.bits}, V = {len(result.vertices)}, "
+                           f"{len(result.faces)} faces"),
+                ("measured error (length)", result.error),
+                ("measured error / S", result.error / result.complexity.grid_size),
+                ("size", f"{result.size_bytes} bytes ({result.format})"),
+                ("passes", len(result.iterations)),
+                ("output", str(output) if output else "(not written: use -o)"),
+            ],
+        )
+        print(result.message)
+    return EXIT_OK if result.met else EXIT_UNMET
+
+
+def _add_calibrate(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "calibrate",
+        help="fit the size model's alpha and T to real Draco encodings of a mesh",
+        description="Simplify MESH to a few vertex counts, encode each with Draco at several "
+        "bit depths, and fit F = (3 alpha B + T) V (paper Eq. 1) to the measured sizes.",
+    )
+    p.add_argument("mesh", type=Path)
+    p.add_argument("--vertices", type=int, nargs="+", default=[500, 2000, 8000])
+    p.add_argument("--bits", type=int, nargs="+", default=[6, 8, 10, 12, 14, 16])
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=_run_calibrate)
+
+
+def _run_calibrate(args: argparse.Namespace) -> int:
+    from .encode import encode_draco, fit_size_model
+    from .simplify import simplify
+
+    mesh = load_mesh(args.mesh)
+    samples = []
+    for target in args.vertices:
+        level = simplify(mesh, target)
+        for bits in args.bits:
+            encoded = encode_draco(level, bits)
+            samples.append((bits, len(encoded.vertices), encoded.size_bits))
+    fit = fit_size_model(*zip(*samples, strict=True))
+    payload = {"mesh": str(args.mesh), **fit.to_dict(),
+               "measurements": [dict(zip(("bits", "vertices", "size_bits"), s, strict=True))
+                                for s in samples]}
+    if args.json:
+        _print_json(payload)
+    else:
+        _print_table(f"{args.mesh}: Draco (level 7) sizes, F = (3 alpha B + T) V", [
+            ("alpha", fit.alpha),
+            ("T (bits per vertex)", fit.connectivity_bits),
+            ("relative RMS misfit", fit.relative_rms),
+            ("encodings", fit.samples),
+        ])
+        print(f"use: meshbits compress MESH --alpha {fit.alpha:.3f} "
+              f"--connectivity-bits {fit.connectivity_bits:.2f} ...")
+    return EXIT_OK
 
 
 def _b0_arg(text: str) -> float | str:
@@ -246,6 +418,8 @@ _COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_k,
     _add_demo,
     _add_plan,
+    _add_compress,
+    _add_calibrate,
 )
 
 

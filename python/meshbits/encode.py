@@ -186,7 +186,8 @@ def fit_size_model(
     bits: Sequence[float], vertices: Sequence[float], size_bits: Sequence[float]
 ) -> SizeModelFit:
     """Fit alpha and T of Eq. 1 to measured sizes, weighting each sample by 1/size so the
-    fit minimises relative error. Needs samples at two or more distinct B."""
+    fit minimises relative error, under the model's constraint T >= 0. Needs samples at
+    two or more distinct B."""
     b = np.asarray(bits, dtype=np.float64)
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(size_bits, dtype=np.float64)
@@ -196,6 +197,10 @@ def fit_size_model(
         raise ValueError("fitting alpha and T needs sizes measured at two or more bit depths")
     design = np.column_stack([3 * b * v, v]) / f[:, None]
     (alpha, t), *_ = np.linalg.lstsq(design, np.ones_like(f), rcond=None)
+    if t < 0:
+        # The model needs T >= 0: the best fit then lies on T = 0.
+        t = 0.0
+        alpha = float(design[:, 0].sum() / (design[:, 0] ** 2).sum())
     predicted = (3 * alpha * b + t) * v
     rms = float(np.sqrt(np.mean(((predicted - f) / f) ** 2)))
     return SizeModelFit(float(alpha), float(t), rms, len(f))

@@ -1,0 +1,433 @@
+"""The paper's algorithm (Sec. 7) end to end: plan, simplify, quantize, encode, measure.
+
+1. Take the constraint: a vertex count V, a file size F, or an error E.
+2. Compute the shape complexity K (:func:`meshbits.shape_complexity`).
+3. Solve for B and V (:mod:`meshbits.model`).
+4. Pick the level of detail closest to V, or simplify to about V vertices.
+5. Quantize to B bits on the bounding-box grid and encode (Draco by default).
+6. Measure the real error (sampled Hausdorff distance to the *original*) and the real
+   file size; when a budget is missed, rescale the constraint given to the solver by
+   budget / measured and repeat.
+
+The loop also steps the other way: a result that meets its budget with room to spare
+(more than :data:`SLACK` of it unused) is retried with a looser constraint, and the best
+result that meets the budget is kept. It stops when the budget is met tightly, after
+``max_iterations``, or when a plan repeats; :attr:`CompressResult.met` says plainly
+whether the budget was met.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import model
+from .complexity import ShapeComplexity, shape_complexity
+from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS
+from .encode import Encoded, encode
+from .hausdorff import hausdorff
+from .mesh import MeshLike, as_mesh
+from .simplify import Simplifier, closest_level, referenced_vertex_count, simplify
+
+__all__ = ["SLACK", "CompressResult", "Iteration", "compress"]
+
+#: A budget counts as met tightly when less than this fraction of it is left unused.
+SLACK = 0.1
+
+#: Largest bits per coordinate an encoder is asked for (Draco accepts 1..30).
+MAX_BITS = 30
+
+
+@dataclass(frozen=True)
+class Iteration:
+    """One pass of steps 3-6.
+
+    Attributes
+    ----------
+    target : float
+        The constraint handed to the solver in this pass (bits for size, mesh length units
+        for error, a count for vertices); the first pass uses the budget itself.
+    bits : int
+        Whole bits per coordinate B used.
+    planned_vertices : int
+        V from the plan.
+    vertices, faces : int
+        Vertex and face counts of the encoded mesh.
+    predicted_error : float
+        The model's E at (B, planned V) (length).
+    predicted_size_bits : float
+        The model's F at (B, planned V) (bits).
+    measured_error : float
+        Sampled symmetric Hausdorff distance between the original and the decoded output
+        (length).
+    measured_size_bits : int
+        Size of the encoded file (bits).
+    met : bool
+        Whether this pass met the budget.
+    seconds : float
+        Wall time of the pass.
+    """
+
+    target: float
+    bits: int
+    planned_vertices: int
+    vertices: int
+    faces: int
+    predicted_error: float
+    predicted_size_bits: float
+    measured_error: float
+    measured_size_bits: int
+    met: bool
+    seconds: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class CompressResult:
+    """Outcome of :func:`compress`.
+
+    Attributes
+    ----------
+    constraint : str
+        ``"size"``, ``"error"`` or ``"vertices"``.
+    budget : float
+        The budget: bits for size, mesh length units for error, a count for vertices.
+    met : bool
+        Whether the chosen output meets the budget (always true for a vertex count).
+    message : str
+        One sentence on the outcome.
+    bits : int
+        Bits per coordinate of the output.
+    vertices, faces : ndarray
+        The output as a decoder reads it back: ``(n, 3)`` float64 positions on the grid,
+        ``(m, 3)`` int64 faces.
+    codes : ndarray
+        ``(n, 3)`` integer grid codes of the output vertices (origin :attr:`origin`,
+        step :attr:`step`).
+    origin : ndarray
+        Grid origin, ``(3,)`` (length).
+    step : float
+        Grid step, ``grid_size / (2**bits - 1)`` (length).
+    error : float
+        Measured symmetric Hausdorff distance to the original (length).
+    size_bits : int
+        Size of the encoded output (bits).
+    data : bytes
+        The encoded file.
+    format : str
+        ``"draco"`` or ``"ply"``.
+    plan : model.Allocation
+        The first plan, from the budget itself.
+    complexity : ShapeComplexity
+        K of the original.
+    iterations : tuple of Iteration
+        Every pass, in order.
+    level : int or None
+        With ``lods``, the index of the level used.
+    seconds : dict
+        Wall time by phase: ``complexity``, ``simplify``, ``encode``, ``hausdorff``.
+    """
+
+    constraint: str
+    budget: float
+    met: bool
+    message: str
+    bits: int
+    vertices: np.ndarray = field(repr=False)
+    faces: np.ndarray = field(repr=False)
+    codes: np.ndarray = field(repr=False)
+    origin: np.ndarray = field(repr=False)
+    step: float
+    error: float
+    size_bits: int
+    data: bytes = field(repr=False)
+    format: str
+    plan: model.Allocation = field(repr=False)
+    complexity: ShapeComplexity = field(repr=False)
+    iterations: tuple[Iteration, ...] = field(repr=False)
+    level: int | None
+    seconds: dict[str, float] = field(repr=False)
+
+    @property
+    def size_bytes(self) -> int:
+        return len(self.data)
+
+    def write(self, path: Any) -> Any:
+        """Write the encoded bytes (for ``.drc`` and ``.ply``)."""
+        from pathlib import Path
+
+        path = Path(path)
+        path.write_bytes(self.data)
+        return path
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (no arrays, no bytes)."""
+        return {
+            "constraint": self.constraint,
+            "budget": self.budget,
+            "met": self.met,
+            "message": self.message,
+            "bits": self.bits,
+            "vertices": len(self.vertices),
+            "faces": len(self.faces),
+            "error": self.error,
+            "size_bits": self.size_bits,
+            "size_bytes": self.size_bytes,
+            "format": self.format,
+            "step": self.step,
+            "grid_size": self.complexity.grid_size,
+            "k": self.complexity.k,
+            "level": self.level,
+            "plan": self.plan.to_dict(),
+            "iterations": [it.to_dict() for it in self.iterations],
+            "seconds": dict(self.seconds),
+        }
+
+
+def _plan(
+    constraint: str, target: float, k: float, grid_size: float, alpha: float, t: float
+) -> model.Allocation:
+    options = {"grid_size": grid_size, "alpha": alpha, "connectivity_bits": t}
+    if constraint == "size":
+        return model.plan_for_size(target, k, **options)
+    if constraint == "error":
+        return model.plan_for_error(target, k, **options)
+    return model.plan_for_vertices(target, k, **options)
+
+
+def _meets(constraint: str, budget: float, error: float, size_bits: int) -> bool:
+    if constraint == "size":
+        return size_bits <= budget
+    if constraint == "error":
+        return error <= budget
+    return True
+
+
+def _slack(constraint: str, budget: float, error: float, size_bits: int) -> float:
+    """Unused fraction of the budget (0 for a vertex count)."""
+    if constraint == "size":
+        return 1.0 - size_bits / budget
+    if constraint == "error":
+        return 1.0 - error / budget
+    return 0.0
+
+
+def compress(
+    mesh: MeshLike,
+    *,
+    size: float | None = None,
+    error: float | None = None,
+    vertices: int | None = None,
+    relative: bool = False,
+    lods: Sequence[MeshLike] | None = None,
+    simplifier: Simplifier | None = None,
+    format: str = "draco",
+    alpha: float = DRACO_ALPHA,
+    connectivity_bits: float = DRACO_CONNECTIVITY_BITS,
+    max_iterations: int = 6,
+    samples: int | None = None,
+    seed: int = 0,
+    estimator: str = "circumsphere",
+    progress: Callable[[Iteration], None] | None = None,
+) -> CompressResult:
+    """Compress a mesh to meet one budget, choosing B and V by the paper's model (Sec. 7).
+
+    Parameters
+    ----------
+    mesh
+        ``trimesh.Trimesh`` or ``(vertices, faces)``.
+    size
+        File-size budget in **bits** (the CLI parses "100KB").
+    error
+        Error budget: the symmetric Hausdorff distance to the original, in the mesh's
+        length unit, or relative to the grid size S (largest bounding-box side) with
+        ``relative=True``.
+    vertices
+        Vertex count: B is the model's optimum for it (Eq. 12); nothing to iterate.
+    lods
+        Precomputed levels of detail: step 4 picks the one closest to the plan's V
+        instead of simplifying.
+    simplifier
+        ``simplifier(vertices, faces, target_vertices) -> (vertices, faces)``; default
+        :func:`meshbits.simplify.simplify` (fast-simplification).
+    format
+        ``"draco"`` (default; DracoPy, ``quantization_bits=B`` on the paper's grid) or
+        ``"ply"`` (positions quantized, stored as float32).
+    alpha, connectivity_bits
+        The size model's alpha and T (Eq. 1). The defaults are fitted to Draco at
+        compression level 7 (see :func:`meshbits.encode.fit_size_model` and
+        ``meshbits calibrate``); the loop corrects for any misfit.
+    max_iterations
+        Passes of steps 3-6 at most.
+    samples, seed
+        Sampling of the Hausdorff measurement (:func:`meshbits.hausdorff`), seeded.
+    estimator
+        Estimator of K.
+    progress
+        Called with each :class:`Iteration` as it completes.
+    """
+    given = [name for name, value in (("size", size), ("error", error), ("vertices", vertices))
+             if value is not None]
+    if len(given) != 1:
+        raise ValueError(f"give exactly one of size, error, vertices (got {given or 'none'})")
+    constraint = given[0]
+    if max_iterations < 1:
+        raise ValueError(f"max_iterations must be at least 1, got {max_iterations}")
+    if format not in ("draco", "ply"):
+        raise ValueError(f"format must be 'draco' or 'ply', got {format!r}")
+    original = as_mesh(mesh)
+    seconds = {"complexity": 0.0, "simplify": 0.0, "encode": 0.0, "hausdorff": 0.0}
+
+    start = time.perf_counter()
+    complexity = shape_complexity(original, estimator=estimator)
+    seconds["complexity"] = time.perf_counter() - start
+    grid_size = complexity.grid_size
+    if complexity.k <= 0:
+        raise ValueError("the mesh has K = 0 (flat or all edges skipped): the model has no answer")
+
+    budget = float({"size": size, "error": error, "vertices": vertices}[constraint])
+    if constraint == "error" and relative:
+        budget *= grid_size
+    if not np.isfinite(budget) or budget <= 0:
+        raise ValueError(f"the {constraint} budget must be a positive finite number, got {budget}")
+    available = referenced_vertex_count(original[1])
+    simplify_to = simplifier or simplify
+
+    simplified_cache: dict[int, tuple[tuple[np.ndarray, np.ndarray], int | None]] = {}
+
+    def level_for(target_vertices: int) -> tuple[tuple[np.ndarray, np.ndarray], int | None]:
+        key = int(target_vertices)
+        if lods is not None:
+            index = closest_level(lods, key)
+            return as_mesh(lods[index]), index
+        if key not in simplified_cache:
+            begin = time.perf_counter()
+            if key >= available:
+                simplified_cache[key] = (original, None)
+            else:
+                v, f = simplify_to(original[0], original[1], key)
+                simplified_cache[key] = (as_mesh(v, f), None)
+            seconds["simplify"] += time.perf_counter() - begin
+        return simplified_cache[key]
+
+    first_plan: model.Allocation | None = None
+    target = budget
+    iterations: list[Iteration] = []
+    best: tuple[Encoded, int | None, Iteration] | None = None
+    fallback: tuple[Encoded, int | None, Iteration] | None = None
+    tried: set[tuple[int, int]] = set()
+    for _ in range(max_iterations):
+        begin = time.perf_counter()
+        plan = _plan(constraint, target, complexity.k, grid_size, alpha, connectivity_bits)
+        first_plan = first_plan or plan
+        bits = int(np.clip(plan.whole_bits, 1, MAX_BITS))
+        planned = int(np.clip(round(plan.whole_vertices), 4, available))
+        if constraint == "vertices":
+            planned = int(min(budget, available))
+        if (bits, planned) in tried:
+            break
+        tried.add((bits, planned))
+        level_mesh, level = level_for(planned)
+
+        t0 = time.perf_counter()
+        encoded = encode(level_mesh, bits, format=format)
+        seconds["encode"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        measured = hausdorff(
+            original, (encoded.vertices, encoded.faces), samples=samples, seed=seed,
+            statistics=False,
+        ).distance
+        seconds["hausdorff"] += time.perf_counter() - t0
+
+        met = _meets(constraint, budget, measured, encoded.size_bits)
+        record = Iteration(
+            target=float(target),
+            bits=bits,
+            planned_vertices=planned,
+            vertices=len(encoded.vertices),
+            faces=len(encoded.faces),
+            predicted_error=float(model.error(bits, planned, complexity.k, grid_size)),
+            predicted_size_bits=float(
+                model.file_size(bits, planned, alpha=alpha, connectivity_bits=connectivity_bits)
+            ),
+            measured_error=float(measured),
+            measured_size_bits=encoded.size_bits,
+            met=met,
+            seconds=time.perf_counter() - begin,
+        )
+        iterations.append(record)
+        if progress is not None:
+            progress(record)
+        if met and (best is None or _better(constraint, record, best[2])):
+            best = (encoded, level, record)
+        if fallback is None or _closer(constraint, budget, record, fallback[2]):
+            fallback = (encoded, level, record)
+        if constraint == "vertices" or lods is not None and met:
+            break
+        if met and _slack(constraint, budget, measured, encoded.size_bits) < SLACK:
+            break
+        ratio = budget / (measured if constraint == "error" else encoded.size_bits)
+        # Aim a little inside the budget so the next pass lands under it.
+        target = target * ratio * (1 - SLACK / 2 if ratio < 1 or not met else 1 - SLACK / 4)
+        if constraint == "error" and target >= grid_size:
+            break
+
+    chosen = best or fallback
+    assert chosen is not None and first_plan is not None
+    encoded, level, record = chosen
+    met = best is not None
+    step = grid_size / (2**encoded.bits - 1)
+    origin = encoded.vertices.min(axis=0) if len(encoded.vertices) else np.zeros(3)
+    codes = np.rint((encoded.vertices - origin) / step).astype(
+        np.uint16 if encoded.bits <= 16 else np.uint32
+    )
+    unit = {"size": "bits", "error": "(mesh units)", "vertices": "vertices"}[constraint]
+    if met:
+        message = (f"met the {constraint} budget {budget:.6g} {unit} with B = {record.bits}, "
+                   f"V = {record.vertices}: error {record.measured_error:.4g}, "
+                   f"{record.measured_size_bits // 8} bytes")
+    else:
+        message = (f"could not meet the {constraint} budget {budget:.6g} {unit} in "
+                   f"{len(iterations)} passes; closest: B = {record.bits}, V = {record.vertices}, "
+                   f"error {record.measured_error:.4g}, {record.measured_size_bits // 8} bytes")
+    return CompressResult(
+        constraint=constraint,
+        budget=budget,
+        met=met,
+        message=message,
+        bits=encoded.bits,
+        vertices=encoded.vertices,
+        faces=encoded.faces,
+        codes=codes,
+        origin=origin,
+        step=step,
+        error=record.measured_error,
+        size_bits=encoded.size_bits,
+        data=encoded.data,
+        format=encoded.format,
+        plan=first_plan,
+        complexity=complexity,
+        iterations=tuple(iterations),
+        level=level,
+        seconds=seconds,
+    )
+
+
+def _better(constraint: str, a: Iteration, b: Iteration) -> bool:
+    """Among results that meet the budget: smaller error for size, smaller file otherwise."""
+    if constraint == "size":
+        return a.measured_error < b.measured_error
+    return a.measured_size_bits < b.measured_size_bits
+
+
+def _closer(constraint: str, budget: float, a: Iteration, b: Iteration) -> bool:
+    """Among results that miss the budget: the one that misses it least."""
+    if constraint == "size":
+        return a.measured_size_bits < b.measured_size_bits
+    return a.measured_error < b.measured_error

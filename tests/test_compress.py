@@ -1,0 +1,166 @@
+"""The paper's Sec. 7 loop end to end, on real meshes, and its command line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from conftest import load
+
+import meshbits
+from meshbits.cli import main
+from meshbits.compress import compress
+from meshbits.encode import decode_draco
+from meshbits.simplify import simplify
+
+DATA = Path(__file__).parent / "data"
+SPOT = meshbits.load_mesh(meshbits.example_mesh_path())
+
+
+@pytest.mark.parametrize(
+    ("name", "relative_error"),
+    [("spot", 0.002), ("spot", 0.01), ("bunny.ply", 0.003), ("horse.ply", 0.002)],
+)
+def test_error_budget_is_met_and_checked_independently(name, relative_error):
+    mesh = SPOT if name == "spot" else load(name)
+    result = compress(mesh, error=relative_error, relative=True)
+    budget = relative_error * result.complexity.grid_size
+    assert result.budget == pytest.approx(budget)
+    assert result.met, result.message
+    assert result.error <= budget
+    # Independent check: decode the real file and measure again with another seed and
+    # more samples.
+    decoded = decode_draco(result.data)
+    again = meshbits.hausdorff(mesh, decoded, seed=12345, samples=200_000)
+    assert again.distance <= 1.05 * budget
+    assert len(result.vertices) < len(np.unique(mesh[1]))  # it did simplify
+
+
+@pytest.mark.parametrize(("name", "size_bytes"), [("spot", 6_000), ("bunny.ply", 20_000)])
+def test_size_budget_is_met_by_the_real_file(name, size_bytes):
+    mesh = SPOT if name == "spot" else load(name)
+    result = compress(mesh, size=8 * size_bytes)
+    assert result.met, result.message
+    assert len(result.data) <= size_bytes
+    assert len(result.data) >= 0.6 * size_bytes  # the budget is used, not wasted
+    vertices, faces = decode_draco(result.data)
+    np.testing.assert_array_equal(vertices, result.vertices)
+    assert result.error == pytest.approx(meshbits.hausdorff(mesh, (vertices, faces)).distance)
+
+
+def test_vertex_budget_uses_the_models_bits():
+    result = compress(SPOT, vertices=1000)
+    assert abs(len(result.vertices) - 1000) <= 50
+    assert result.bits == result.plan.whole_bits
+    assert len(result.iterations) == 1 and result.met
+
+
+def test_unreachable_budget_says_so():
+    result = compress(SPOT, size=8 * 200, max_iterations=3)
+    assert not result.met
+    assert "could not meet" in result.message
+    assert len(result.iterations) <= 3
+
+
+def test_lods_pick_the_level_closest_to_the_plan():
+    levels = [simplify(SPOT, n) for n in (300, 1000, 2500)]
+    result = compress(SPOT, vertices=900, lods=levels)
+    assert result.level == 1
+    planned = result.iterations[0].planned_vertices
+    counts = [len(level[0]) for level in levels]
+    assert result.level == int(np.argmin(np.abs(np.log(counts) - np.log(planned))))
+
+
+def test_codes_rebuild_the_output():
+    result = compress(SPOT, error=0.005, relative=True)
+    rebuilt = result.origin + result.codes * result.step
+    assert np.abs(rebuilt - result.vertices).max() < 0.01 * result.step
+    assert result.codes.max() <= 2**result.bits - 1
+
+
+def test_ply_format():
+    result = compress(SPOT, error=0.005, relative=True, format="ply")
+    assert result.format == "ply" and result.data.startswith(b"ply\n")
+
+
+def test_reproducible_with_a_seed():
+    a = compress(SPOT, error=0.003, relative=True, seed=7)
+    b = compress(SPOT, error=0.003, relative=True, seed=7)
+    assert a.data == b.data and a.error == b.error
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({}, "exactly one"),
+        ({"size": 1e5, "error": 0.1}, "exactly one"),
+        ({"error": -1.0}, "positive"),
+        ({"error": 0.1, "format": "gif"}, "format"),
+        ({"error": 0.1, "max_iterations": 0}, "max_iterations"),
+    ],
+)
+def test_bad_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        compress(SPOT, **kwargs)
+
+
+# --- command line -----------------------------------------------------------------------
+
+
+def test_compress_cli_json_and_output(tmp_path, capsys):
+    out = tmp_path / "spot.drc"
+    code = main(["compress", str(meshbits.example_mesh_path()), "--error", "0.004",
+                 "--relative", "-o", str(out), "--json", "--quiet"])
+    assert code == 0
+    report = json.loads(capsys.readouterr().out)
+    for key in ("met", "bits", "vertices", "faces", "error", "size_bytes", "plan", "iterations",
+                "budget", "constraint", "output", "seconds"):
+        assert key in report
+    assert out.stat().st_size == report["size_bytes"]
+    assert report["error"] <= report["budget"]
+
+
+def test_compress_cli_writes_glb(tmp_path, capsys):
+    out = tmp_path / "spot.glb"
+    assert main(["compress", str(meshbits.example_mesh_path()), "--vertices", "500",
+                 "-o", str(out), "--quiet"]) == 0
+    assert len(trimesh.load(out, force="mesh").faces) > 0
+
+
+def test_compress_cli_exit_1_when_unmet(capsys):
+    code = main(["compress", str(meshbits.example_mesh_path()), "--size", "200B", "--json",
+                 "--quiet", "--max-iterations", "2"])
+    assert code == 1
+    assert json.loads(capsys.readouterr().out)["met"] is False
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["compress", str(DATA / "missing.ply"), "--error", "0.1"],
+        ["compress", str(DATA / "bunny.ply"), "--size", "100"],
+        ["compress", str(DATA / "bunny.ply"), "--size", "100KB", "-o", "x.glb"],
+        ["compress", str(DATA / "bunny.ply"), "--error", "0.1", "-o", "x.gif"],
+        ["compress", str(DATA / "bunny.ply"), "--vertices", "100", "--relative"],
+    ],
+)
+def test_compress_cli_bad_input_exit_2(argv, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("meshbits compress: error:") and err.count("\n") == 1
+
+
+def test_demo(capsys):
+    assert main(["demo"]) == 0
+    out = capsys.readouterr().out
+    assert "spot.ply" in out and "met the error budget" in out
+
+
+def test_calibrate_cli(capsys):
+    assert main(["calibrate", str(meshbits.example_mesh_path()), "--vertices", "400", "1200",
+                 "--bits", "8", "12", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert 0 < report["alpha"] <= 2 and report["samples"] == 4
