@@ -12,21 +12,37 @@ import os
 from . import _core
 from ._core import MeshbitsError
 from .complexity import ShapeComplexity, shape_complexity
+from .hausdorff import (
+    Closest,
+    ClosestPoints,
+    DirectedHausdorff,
+    Hausdorff,
+    SurfaceSamples,
+    hausdorff,
+    surface_samples,
+)
 from .io import example_mesh_path, load_mesh, save_mesh
 from .threads import get_num_threads, set_num_threads, threads
 
 __version__: str = _core.__version__
 
 __all__ = [
+    "Closest",
+    "ClosestPoints",
+    "DirectedHausdorff",
+    "Hausdorff",
     "MeshbitsError",
     "ShapeComplexity",
+    "SurfaceSamples",
     "__version__",
     "example_mesh_path",
     "get_num_threads",
+    "hausdorff",
     "load_mesh",
     "save_mesh",
     "set_num_threads",
     "shape_complexity",
+    "surface_samples",
     "threads",
 ]
 

@@ -20,3 +20,14 @@ ILL_COCIRCULAR = 1e-3
 
 #: Estimators of the per-edge term p(e)/r(e) of K.
 ESTIMATORS = ("circumsphere", "dihedral", "hybrid")
+
+#: Default area samples per face of each mesh for the sampled Hausdorff distance (Metro's
+#: default density), clamped to [HAUSDORFF_MIN_SAMPLES, HAUSDORFF_MAX_SAMPLES]. Every
+#: referenced vertex is sampled in addition.
+HAUSDORFF_SAMPLES_PER_FACE = 10
+HAUSDORFF_MIN_SAMPLES = 10_000
+HAUSDORFF_MAX_SAMPLES = 1_000_000
+
+#: Largest number of extra point queries the refinement of the certified upper bound may
+#: spend per direction before it stops and reports ``converged=False``.
+HAUSDORFF_REFINE_BUDGET = 20_000_000
