@@ -34,12 +34,16 @@ def main() -> None:
                 encoded = encode_draco(level, bits)
                 own.append((bits, len(encoded.vertices), encoded.size_bits))
         fit = fit_size_model(*map(np.array, zip(*own, strict=True)))
-        print(f"| {path.stem} | {fit.alpha:.3f} | {fit.connectivity_bits:.2f} | "
-              f"{fit.relative_rms:.1%} |")
+        print(
+            f"| {path.stem} | {fit.alpha:.3f} | {fit.connectivity_bits:.2f} | "
+            f"{fit.relative_rms:.1%} |"
+        )
         rows += own
     fit = fit_size_model(*map(np.array, zip(*rows, strict=True)))
-    print(f"| all ({fit.samples} encodings) | {fit.alpha:.3f} | {fit.connectivity_bits:.2f} | "
-          f"{fit.relative_rms:.1%} |")
+    print(
+        f"| all ({fit.samples} encodings) | {fit.alpha:.3f} | {fit.connectivity_bits:.2f} | "
+        f"{fit.relative_rms:.1%} |"
+    )
 
 
 if __name__ == "__main__":

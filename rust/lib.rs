@@ -2,13 +2,19 @@
 //! Allocation in 3D Compression", 1999).
 //!
 //! The crate holds the hot paths: shape complexity K ([`complexity`]) over the unique-edge
-//! table ([`adjacency`]). Kernels take plain slices (`&[[f64; 3]]` vertices,
+//! table ([`adjacency`]); the sampled Hausdorff distance ([`hausdorff`]) over seeded surface
+//! samples ([`sampling`]), a triangle BVH ([`bvh`]) and exact point-triangle distances
+//! ([`closest`]). Kernels take plain slices (`&[[f64; 3]]` vertices,
 //! `&[[u32; 3]]` faces), return `Result<_, MeshError>` and never panic on user data; the
 //! only file that knows Python is [`python`].
 
 pub mod adjacency;
+pub mod bvh;
+pub mod closest;
 pub mod complexity;
 pub mod error;
+pub mod hausdorff;
 mod python;
+pub mod sampling;
 
 pub use error::MeshError;

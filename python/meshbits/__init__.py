@@ -12,6 +12,16 @@ import os
 from . import _core, model
 from ._core import MeshbitsError
 from .complexity import ShapeComplexity, shape_complexity
+from .compress import CompressResult, Iteration, compress
+from .hausdorff import (
+    Closest,
+    ClosestPoints,
+    DirectedHausdorff,
+    Hausdorff,
+    SurfaceSamples,
+    hausdorff,
+    surface_samples,
+)
 from .io import example_mesh_path, load_mesh, save_mesh
 from .model import (
     Allocation,
@@ -20,18 +30,28 @@ from .model import (
     plan_for_size,
     plan_for_vertices,
 )
+from .simplify import simplify
 from .threads import get_num_threads, set_num_threads, threads
 
 __version__: str = _core.__version__
 
 __all__ = [
     "Allocation",
+    "Closest",
+    "ClosestPoints",
+    "CompressResult",
+    "DirectedHausdorff",
+    "Hausdorff",
+    "Iteration",
     "MeshbitsError",
     "ShapeComplexity",
+    "SurfaceSamples",
     "__version__",
+    "compress",
     "example_mesh_path",
     "get_num_threads",
     "guaranteed_bits",
+    "hausdorff",
     "load_mesh",
     "model",
     "plan_for_error",
@@ -40,6 +60,8 @@ __all__ = [
     "save_mesh",
     "set_num_threads",
     "shape_complexity",
+    "simplify",
+    "surface_samples",
     "threads",
 ]
 

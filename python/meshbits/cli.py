@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from .complexity import shape_complexity
-from .constants import ESTIMATORS
+from .constants import ESTIMATORS, HAUSDORFF_REFINE_BUDGET
+from .hausdorff import hausdorff
 from .io import example_mesh_path, load_mesh
 from .model import METHODS, parse_size, plan_for_error, plan_for_size, plan_for_vertices
 
@@ -110,9 +111,11 @@ def _run_demo(args: argparse.Namespace) -> int:
     args.max_iterations, args.samples, args.seed = 6, None, 0
     args.estimator, args.quiet = "circumsphere", args.json
     if not args.json:
-        print(f"meshbits demo: compressing {args.mesh.name} (Spot by Keenan Crane, public "
-              f"domain) to a Hausdorff error of at most {DEMO_RELATIVE_ERROR} x its largest "
-              "bounding-box side")
+        print(
+            f"meshbits demo: compressing {args.mesh.name} (Spot by Keenan Crane, public "
+            f"domain) to a Hausdorff error of at most {DEMO_RELATIVE_ERROR} x its largest "
+            "bounding-box side"
+        )
     return _run_compress(args)
 
 
@@ -139,7 +142,9 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
         "--relative", action="store_true", help="--error is a fraction of S (largest bbox side)"
     )
     p.add_argument(
-        "-o", "--output", type=Path,
+        "-o",
+        "--output",
+        type=Path,
         help="output file: .drc (Draco), .ply (quantized PLY); .glb/.obj/.off/.stl through "
         "trimesh (not with --size: their size is not what the loop measures)",
     )
@@ -174,10 +179,13 @@ def _run_compress(args: argparse.Namespace) -> int:
 
     def report(it: Any) -> None:
         if not args.quiet:
-            print(f"  pass: B = {it.bits}, V = {it.vertices} (planned {it.planned_vertices}); "
-                  f"error {it.measured_error:.4g} (model {it.predicted_error:.4g}), "
-                  f"{it.measured_size_bits // 8} bytes (model {it.predicted_size_bits / 8:.0f})"
-                  f"{'' if it.met else ': misses the budget'}", file=sys.stderr)
+            print(
+                f"  pass: B = {it.bits}, V = {it.vertices} (planned {it.planned_vertices}); "
+                f"error {it.measured_error:.4g} (model {it.predicted_error:.4g}), "
+                f"{it.measured_size_bits // 8} bytes (model {it.predicted_size_bits / 8:.0f})"
+                f"{'' if it.met else ': misses the budget'}",
+                file=sys.stderr,
+            )
 
     result = compress(
         mesh,
@@ -202,8 +210,11 @@ def _run_compress(args: argparse.Namespace) -> int:
             result.write(output)
         else:
             save_mesh(output, result.vertices, result.faces)
-    payload = {"mesh": str(args.mesh), "output": str(output) if output else None,
-               **result.to_dict()}
+    payload = {
+        "mesh": str(args.mesh),
+        "output": str(output) if output else None,
+        **result.to_dict(),
+    }
     if args.json:
         _print_json(payload)
     else:
@@ -214,8 +225,10 @@ def _run_compress(args: argparse.Namespace) -> int:
             [
                 ("budget", f"{result.budget:.6g} ({result.constraint})"),
                 ("first plan", f"B = {first.whole_bits}, V = {first.whole_vertices:.0f}"),
-                ("chosen", f"B = {result.bits}, V = {len(result.vertices)}, "
-                           f"{len(result.faces)} faces"),
+                (
+                    "chosen",
+                    f"B = {result.bits}, V = {len(result.vertices)}, {len(result.faces)} faces",
+                ),
                 ("measured error (length)", result.error),
                 ("measured error / S", result.error / result.complexity.grid_size),
                 ("size", f"{result.size_bytes} bytes ({result.format})"),
@@ -253,20 +266,29 @@ def _run_calibrate(args: argparse.Namespace) -> int:
             encoded = encode_draco(level, bits)
             samples.append((bits, len(encoded.vertices), encoded.size_bits))
     fit = fit_size_model(*zip(*samples, strict=True))
-    payload = {"mesh": str(args.mesh), **fit.to_dict(),
-               "measurements": [dict(zip(("bits", "vertices", "size_bits"), s, strict=True))
-                                for s in samples]}
+    payload = {
+        "mesh": str(args.mesh),
+        **fit.to_dict(),
+        "measurements": [
+            dict(zip(("bits", "vertices", "size_bits"), s, strict=True)) for s in samples
+        ],
+    }
     if args.json:
         _print_json(payload)
     else:
-        _print_table(f"{args.mesh}: Draco (level 7) sizes, F = (3 alpha B + T) V", [
-            ("alpha", fit.alpha),
-            ("T (bits per vertex)", fit.connectivity_bits),
-            ("relative RMS misfit", fit.relative_rms),
-            ("encodings", fit.samples),
-        ])
-        print(f"use: meshbits compress MESH --alpha {fit.alpha:.3f} "
-              f"--connectivity-bits {fit.connectivity_bits:.2f} ...")
+        _print_table(
+            f"{args.mesh}: Draco (level 7) sizes, F = (3 alpha B + T) V",
+            [
+                ("alpha", fit.alpha),
+                ("T (bits per vertex)", fit.connectivity_bits),
+                ("relative RMS misfit", fit.relative_rms),
+                ("encodings", fit.samples),
+            ],
+        )
+        print(
+            f"use: meshbits compress MESH --alpha {fit.alpha:.3f} "
+            f"--connectivity-bits {fit.connectivity_bits:.2f} ..."
+        )
     return EXIT_OK
 
 
@@ -414,12 +436,98 @@ def _run_plan(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _add_hausdorff(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "hausdorff",
+        help="sampled Hausdorff distance between two meshes (paper Sec. 3.2, the error E)",
+    )
+    p.add_argument("a", type=Path, help="first mesh file")
+    p.add_argument("b", type=Path, help="second mesh file")
+    p.add_argument(
+        "--samples",
+        type=int,
+        default=None,
+        help="area samples per mesh, on top of the vertices "
+        "(default: 10 per face, clamped to [10000, 1000000])",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the samples (default 0)")
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        default=None,
+        help="refine until the certified upper bound is within this length of the sampled value",
+    )
+    p.add_argument("--bounds", action="store_true", help="also report a certified upper bound")
+    p.add_argument(
+        "--max-only",
+        action="store_true",
+        help="compute the maximum only (faster; no mean, RMS or percentiles)",
+    )
+    p.add_argument(
+        "--refine-budget",
+        type=int,
+        default=HAUSDORFF_REFINE_BUDGET,
+        help="largest number of refinement points per direction",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=_run_hausdorff)
+
+
+def _progress(message: str) -> None:
+    print(f"meshbits hausdorff: {message}", file=sys.stderr, flush=True)
+
+
+def _run_hausdorff(args: argparse.Namespace) -> int:
+    meshes = {}
+    for name in ("a", "b"):
+        path = getattr(args, name)
+        if not args.quiet:
+            _progress(f"reading {path}")
+        meshes[name] = load_mesh(path)
+    result = hausdorff(
+        meshes["a"],
+        meshes["b"],
+        samples=args.samples,
+        seed=args.seed,
+        statistics=not args.max_only,
+        bounds=args.bounds,
+        tolerance=args.tolerance,
+        refine_budget=args.refine_budget,
+        progress=None if args.quiet else _progress,
+    )
+    report = {"a": str(args.a), "b": str(args.b), **result.to_dict()}
+    if args.json:
+        _print_json(report)
+        return EXIT_OK
+    rows: list[tuple[str, Any]] = [("Hausdorff distance (sampled)", result.distance)]
+    if result.upper is not None:
+        rows.append(("certified upper bound", result.upper))
+    for label, d in (("A -> B", result.a_to_b), ("B -> A", result.b_to_a)):
+        rows.append((f"{label} max", d.max))
+        if d.mean is not None:
+            rows += [
+                (f"{label} mean", d.mean),
+                (f"{label} rms", d.rms),
+                (f"{label} p50 / p95 / p99", f"{d.p50:.6g} / {d.p95:.6g} / {d.p99:.6g}"),
+            ]
+        if d.upper is not None:
+            rows.append((f"{label} upper", d.upper))
+        if d.converged is not None:
+            rows.append((f"{label} converged", d.converged))
+        rows.append((f"{label} samples", d.n_samples))
+        rows.append((f"{label} argmax", "(" + ", ".join(f"{x:.6g}" for x in d.argmax) + ")"))
+    _print_table(f"{args.a} vs {args.b} (seed {result.seed}; lengths in the files' unit)", rows)
+    return EXIT_OK
+
+
 _COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_k,
     _add_demo,
     _add_plan,
     _add_compress,
     _add_calibrate,
+    _add_hausdorff,
 )
 
 

@@ -49,3 +49,13 @@ PAPER_B0 = 1.838
 #: misfit by measuring; ``meshbits calibrate`` fits a mesh of your own.
 DRACO_ALPHA = 0.595
 DRACO_CONNECTIVITY_BITS = 0.0
+#: Default area samples per face of each mesh for the sampled Hausdorff distance (Metro's
+#: default density), clamped to [HAUSDORFF_MIN_SAMPLES, HAUSDORFF_MAX_SAMPLES]. Every
+#: referenced vertex is sampled in addition.
+HAUSDORFF_SAMPLES_PER_FACE = 10
+HAUSDORFF_MIN_SAMPLES = 10_000
+HAUSDORFF_MAX_SAMPLES = 1_000_000
+
+#: Largest number of extra point queries the refinement of the certified upper bound may
+#: spend per direction before it stops and reports ``converged=False``.
+HAUSDORFF_REFINE_BUDGET = 20_000_000

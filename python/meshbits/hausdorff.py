@@ -1,0 +1,476 @@
+"""Closest points and the sampled Hausdorff distance (King & Rossignac 1999, Sec. 3.2).
+
+The error ``E`` of the paper is the Hausdorff distance ``H(O, A)`` between the original
+``O`` and its approximation ``A``: ``H(A, B) = max(h(A, B), h(B, A))`` with the one-sided
+``h(A, B) = max over p in A of min over q in B of |p - q|``. :func:`hausdorff` measures it
+on seeded samples of both surfaces, with exact float64 point-to-triangle distances found
+through a BVH (``rust/bvh.rs``), and can certify an upper bound.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import _core
+from .constants import (
+    HAUSDORFF_MAX_SAMPLES,
+    HAUSDORFF_MIN_SAMPLES,
+    HAUSDORFF_REFINE_BUDGET,
+    HAUSDORFF_SAMPLES_PER_FACE,
+)
+from .mesh import MeshLike, as_mesh, as_points
+
+__all__ = [
+    "Closest",
+    "ClosestPoints",
+    "DirectedHausdorff",
+    "Hausdorff",
+    "SurfaceSamples",
+    "default_samples",
+    "hausdorff",
+    "surface_samples",
+]
+
+_U64 = 2**64
+
+
+def default_samples(n_faces: int) -> int:
+    """Default number of area samples for a mesh of ``n_faces`` faces.
+
+    ``HAUSDORFF_SAMPLES_PER_FACE * n_faces`` (10 per face, as Metro), clamped to
+    ``[HAUSDORFF_MIN_SAMPLES, HAUSDORFF_MAX_SAMPLES]`` = ``[10_000, 1_000_000]`` (see
+    :mod:`meshbits.constants`). The referenced vertices are sampled on top of these.
+    """
+    per_face = HAUSDORFF_SAMPLES_PER_FACE * int(n_faces)
+    return int(min(max(per_face, HAUSDORFF_MIN_SAMPLES), HAUSDORFF_MAX_SAMPLES))
+
+
+def _check_count(value: Any, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
+    if value < 0:
+        raise ValueError(f"{name} must be non-negative, got {value}")
+    return int(value)
+
+
+def _check_seed(seed: Any) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise TypeError(f"seed must be an integer, got {type(seed).__name__}")
+    if not 0 <= seed < _U64:
+        raise ValueError(f"seed must be in [0, 2**64), got {seed}")
+    return int(seed)
+
+
+@dataclass(frozen=True)
+class Closest:
+    """Nearest points on a mesh, one row per query point.
+
+    Attributes
+    ----------
+    distances : ndarray, shape (n,), float64
+        Exact distance from each query to the mesh (length).
+    points : ndarray, shape (n, 3), float64
+        The closest point of the mesh to each query (length).
+    faces : ndarray, shape (n,), int64
+        The face holding it; ties between faces at exactly the same distance go to the
+        smallest face index.
+    """
+
+    distances: np.ndarray
+    points: np.ndarray
+    faces: np.ndarray
+
+
+class ClosestPoints:
+    """Exact closest points on a triangle mesh, through a reusable BVH.
+
+    The tree (obvhs PLOC over the triangles' boxes, stored in float32 but rounded
+    outward, coordinates recentred on the bounding-box centre) is built once here;
+    :meth:`query` then runs in parallel with the GIL released. Distances are exact
+    float64 point-to-triangle distances (Ericson's region method); zero-area triangles
+    count as their edges.
+
+    Parameters
+    ----------
+    mesh_or_vertices
+        A ``trimesh.Trimesh``, a ``(vertices, faces)`` pair, or ``(n, 3)`` float vertices.
+    faces
+        ``(m, 3)`` integer vertex indices when ``mesh_or_vertices`` is an array.
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, NaN or infinite coordinates, out-of-range indices, an empty mesh.
+    TypeError
+        Non-numeric vertices or non-integer faces.
+
+    Examples
+    --------
+    >>> import meshbits, numpy as np
+    >>> square = (np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]), [[0, 1, 2], [0, 2, 3]])
+    >>> meshbits.ClosestPoints(square).query([[0.5, 0.5, 2.0]]).distances
+    array([2.])
+    """
+
+    def __init__(self, mesh_or_vertices: MeshLike, faces: Any = None) -> None:
+        vertices, triangles = as_mesh(mesh_or_vertices, faces)
+        self._tree = _core.build_tree(vertices, triangles)
+
+    @property
+    def n_faces(self) -> int:
+        """Number of triangles in the tree."""
+        return int(self._tree.n_faces)
+
+    @property
+    def n_vertices(self) -> int:
+        """Number of vertices of the mesh (referenced or not)."""
+        return int(self._tree.n_vertices)
+
+    def query(self, points: Any) -> Closest:
+        """Closest point of the mesh to each of ``points`` ((n, 3) float, length)."""
+        array = as_points(points, "points", allow_empty=True)
+        distances, closest, faces = self._tree.query(array)
+        return Closest(distances, closest, faces.astype(np.int64))
+
+    def validate(self) -> None:
+        """Check the tree's invariants (every triangle reachable once, boxes containing
+        their triangles and children); raises ``RuntimeError`` if one is broken."""
+        self._tree.validate()
+
+    def __repr__(self) -> str:
+        return f"ClosestPoints({self.n_faces} faces, depth {self._tree.depth})"
+
+
+@dataclass(frozen=True)
+class SurfaceSamples:
+    """The points a mesh is sampled at (see :func:`surface_samples`).
+
+    Attributes
+    ----------
+    points : ndarray, shape (n, 3), float64
+        Vertex samples first, then area samples grouped by face (length).
+    faces : ndarray, shape (n,), int64
+        Face of each area sample; -1 for vertex samples.
+    n_vertex_samples : int
+        Number of vertex samples (the referenced vertices, in index order).
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    n_vertex_samples: int
+
+
+def surface_samples(
+    mesh_or_vertices: MeshLike, faces: Any = None, *, samples: int | None = None, seed: int = 0
+) -> SurfaceSamples:
+    """The sample set of a mesh, as :func:`hausdorff` uses it.
+
+    Every vertex referenced by a face (unreferenced vertices are not on the surface and
+    are skipped), then ``samples`` points drawn by area: each face receives its expected
+    share ``samples * area_i / area`` rounded up or down (systematic sampling along the
+    cumulative area, one random offset), placed uniformly in the face by a random stream
+    seeded by ``(seed, face index)``. The same seed gives the same points on any number of
+    threads. Zero-area faces receive no area samples.
+
+    Parameters
+    ----------
+    samples
+        Area samples; default :func:`default_samples` (10 per face, clamped to
+        ``[10_000, 1_000_000]``).
+    seed
+        Any integer in ``[0, 2**64)``.
+    """
+    vertices, triangles = as_mesh(mesh_or_vertices, faces)
+    count = default_samples(len(triangles)) if samples is None else _check_count(samples, "samples")
+    raw = _core.surface_samples(vertices, triangles, count, _check_seed(seed))
+    sample_faces = raw["faces"].astype(np.int64)
+    sample_faces[: raw["n_vertex_samples"]] = -1
+    return SurfaceSamples(raw["points"], sample_faces, int(raw["n_vertex_samples"]))
+
+
+@dataclass(frozen=True)
+class DirectedHausdorff:
+    """One direction, ``h(source, target)``, of the sampled Hausdorff distance.
+
+    All distances are in the meshes' length unit.
+
+    Attributes
+    ----------
+    max : float
+        The largest exact distance found at any evaluated point: the samples and, when a
+        tolerance was given, the refinement points. A lower bound on the true ``h``.
+    argmax : ndarray, shape (3,)
+        The point achieving ``max`` (on the source).
+    argmax_closest : ndarray, shape (3,)
+        Its closest point on the target.
+    argmax_face : int
+        The target face holding ``argmax_closest``.
+    n_samples : int
+        Samples evaluated: referenced vertices plus area samples.
+    n_vertex_samples : int
+        How many of them are vertices.
+    mean, rms, p50, p95, p99 : float or None
+        Mean, root mean square and 50th / 95th / 99th percentiles (linear interpolation,
+        as numpy's default) of the sample distances; ``None`` with ``statistics=False``.
+    upper : float or None
+        Certified upper bound on the true ``h`` (``bounds=True`` or a tolerance).
+    refined_points : int
+        Extra points evaluated by the refinement.
+    converged : bool or None
+        With a tolerance: whether ``upper - max <= tolerance`` was reached (``False``: the
+        refinement budget ran out first). ``None`` without a tolerance.
+    samples : ndarray, shape (n, 3), or None
+        With ``return_samples=True``: the sample points (vertices first).
+    sample_faces : ndarray, shape (n,), int64, or None
+        Source face of each sample, -1 for vertex samples.
+    distances : ndarray, shape (n,), or None
+        Exact distance of each sample.
+    vertex_distances : ndarray, shape (source vertices,), or None
+        Exact distance of each source vertex (NaN for unreferenced ones): colour the
+        source mesh by error with it.
+    """
+
+    max: float
+    argmax: np.ndarray
+    argmax_closest: np.ndarray
+    argmax_face: int
+    n_samples: int
+    n_vertex_samples: int
+    mean: float | None = None
+    rms: float | None = None
+    p50: float | None = None
+    p95: float | None = None
+    p99: float | None = None
+    upper: float | None = None
+    refined_points: int = 0
+    converged: bool | None = None
+    samples: np.ndarray | None = field(default=None, repr=False)
+    sample_faces: np.ndarray | None = field(default=None, repr=False)
+    distances: np.ndarray | None = field(default=None, repr=False)
+    vertex_distances: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def lower(self) -> float:
+        """Certified lower bound on the true ``h``: the same as :attr:`max`."""
+        return self.max
+
+    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
+        """JSON-ready dict of the scalars (and, with ``arrays=True``, the sample arrays)."""
+        out = asdict(self)
+        for name in ("samples", "sample_faces", "distances", "vertex_distances"):
+            value = out.pop(name)
+            if arrays and value is not None:
+                out[name] = value.tolist()
+        out["argmax"] = self.argmax.tolist()
+        out["argmax_closest"] = self.argmax_closest.tolist()
+        out["lower"] = self.max
+        return out
+
+
+@dataclass(frozen=True)
+class Hausdorff:
+    """The symmetric sampled Hausdorff distance of two meshes, and both directions.
+
+    Attributes
+    ----------
+    distance : float
+        ``max(a_to_b.max, b_to_a.max)``: the sampled (lower-bound) Hausdorff distance
+        (length).
+    upper : float or None
+        ``max(a_to_b.upper, b_to_a.upper)``: a certified upper bound (length), with
+        ``bounds=True`` or a tolerance.
+    a_to_b, b_to_a : DirectedHausdorff
+        The two one-sided distances.
+    seed : int
+        The seed of both sample sets.
+    statistics : bool
+        Whether every sample's distance was computed (mean, RMS, percentiles).
+    tolerance : float or None
+        The requested ``upper - distance`` (length).
+    """
+
+    distance: float
+    upper: float | None
+    a_to_b: DirectedHausdorff
+    b_to_a: DirectedHausdorff
+    seed: int
+    statistics: bool
+    tolerance: float | None
+
+    @property
+    def lower(self) -> float:
+        """Certified lower bound on the true Hausdorff distance: :attr:`distance`."""
+        return self.distance
+
+    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
+        """JSON-ready nested dict."""
+        return {
+            "distance": self.distance,
+            "lower": self.distance,
+            "upper": self.upper,
+            "seed": self.seed,
+            "statistics": self.statistics,
+            "tolerance": self.tolerance,
+            "a_to_b": self.a_to_b.to_dict(arrays=arrays),
+            "b_to_a": self.b_to_a.to_dict(arrays=arrays),
+        }
+
+
+def _directed(raw: dict[str, Any]) -> DirectedHausdorff:
+    sample_faces = raw.get("sample_faces")
+    if sample_faces is not None:
+        sample_faces = sample_faces.astype(np.int64)
+        sample_faces[: raw["n_vertex_samples"]] = -1
+    return DirectedHausdorff(
+        max=float(raw["max"]),
+        argmax=np.asarray(raw["argmax"]),
+        argmax_closest=np.asarray(raw["argmax_closest"]),
+        argmax_face=int(raw["argmax_face"]),
+        n_samples=int(raw["n_samples"]),
+        n_vertex_samples=int(raw["n_vertex_samples"]),
+        mean=raw.get("mean"),
+        rms=raw.get("rms"),
+        p50=raw.get("p50"),
+        p95=raw.get("p95"),
+        p99=raw.get("p99"),
+        upper=raw.get("upper"),
+        refined_points=int(raw.get("refined_points", 0)),
+        converged=raw.get("converged"),
+        samples=raw.get("samples"),
+        sample_faces=sample_faces,
+        distances=raw.get("distances"),
+        vertex_distances=raw.get("vertex_distances"),
+    )
+
+
+def hausdorff(
+    a: MeshLike,
+    b: MeshLike,
+    *,
+    samples: int | None = None,
+    seed: int = 0,
+    statistics: bool = True,
+    bounds: bool = False,
+    tolerance: float | None = None,
+    return_samples: bool = False,
+    refine_budget: int = HAUSDORFF_REFINE_BUDGET,
+    progress: Callable[[str], None] | None = None,
+) -> Hausdorff:
+    """Sampled Hausdorff distance between two triangle meshes (paper Sec. 3.2, the error E).
+
+    Each surface is sampled (:func:`surface_samples`): every referenced vertex, plus
+    ``samples`` points by area (default 10 per face, clamped to ``[10_000, 1_000_000]``,
+    per mesh). Each sample's distance to the other mesh is the exact float64 distance to
+    its nearest triangle. ``h(A, B)`` is the largest over A's samples, and the result's
+    ``distance`` is ``max(h(A, B), h(B, A))``: a lower bound on the true Hausdorff distance.
+
+    Parameters
+    ----------
+    a, b
+        ``trimesh.Trimesh`` objects or ``(vertices, faces)`` pairs.
+    samples
+        Area samples per mesh (the vertices come on top).
+    seed
+        Seed of both sample sets, in ``[0, 2**64)``. The same seed gives bit-identical
+        results on any number of threads.
+    statistics
+        ``True``: compute every sample's distance in full, for the mean, RMS and
+        percentiles. ``False``: the maximum only, which is several times faster: a
+        sample's search stops as soon as it finds a triangle closer than the largest
+        distance found so far, since it can no longer raise the maximum. ``max``,
+        ``argmax`` and ``upper`` are identical either way.
+    bounds
+        Also compute a certified upper bound per direction from the exact distances of
+        the vertices: on each source triangle, the smaller of
+        ``max corner distance + covering radius`` (the distance is 1-Lipschitz) and
+        ``max corner distance to one target triangle`` (a convex function, maximal at a
+        corner).
+    tolerance
+        Refine (split triangles at their edge midpoints, evaluate the midpoints) where the
+        bound exceeds ``max + tolerance``, until ``upper - max <= tolerance`` in each
+        direction (length). Implies ``bounds``.
+    return_samples
+        Also return each direction's sample points, their exact distances and the
+        per-vertex distances of the source (implies the full computation).
+    refine_budget
+        Largest number of refinement points per direction; when it runs out, the
+        result has ``converged=False`` and the bounds reached so far.
+    progress
+        Called with a one-line message at the start and end of each phase.
+
+    Returns
+    -------
+    Hausdorff
+        ``distance``, ``upper``, and the per-direction :class:`DirectedHausdorff`
+        ``a_to_b`` (samples of ``a`` against ``b``) and ``b_to_a``.
+
+    Raises
+    ------
+    ValueError
+        Bad meshes (shapes, NaN, indices, no faces), a negative sample count, a
+        non-positive tolerance.
+    TypeError
+        Non-numeric input, a non-integer seed or sample count.
+
+    Notes
+    -----
+    Unlike PyMeshLab's Hausdorff filter, unreferenced vertices are not sampled (they are
+    not on the surface). Zero-area faces get no area samples but their vertices are
+    sampled, and the bounds cover them.
+    """
+    seed = _check_seed(seed)
+    if samples is not None:
+        samples = _check_count(samples, "samples")
+    refine_budget = _check_count(refine_budget, "refine_budget")
+    if tolerance is not None:
+        tolerance = float(tolerance)
+        if not (tolerance > 0 and math.isfinite(tolerance)):
+            raise ValueError(f"tolerance must be positive and finite, got {tolerance}")
+        bounds = True
+    say = progress or (lambda _message: None)
+    meshes = {"A": as_mesh(a), "B": as_mesh(b)}
+    trees = {}
+    for name, (vertices, faces) in meshes.items():
+        start = time.perf_counter()
+        say(f"building the BVH of {name} ({len(faces):,} faces)")
+        trees[name] = _core.build_tree(vertices, faces)
+        say(f"built the BVH of {name} in {time.perf_counter() - start:.2f} s")
+    directions = {}
+    for source, target in (("A", "B"), ("B", "A")):
+        vertices, faces = meshes[source]
+        count = default_samples(len(faces)) if samples is None else samples
+        start = time.perf_counter()
+        say(f"{source} -> {target}: {count:,} area samples + vertices")
+        raw = _core.hausdorff_directed(
+            vertices,
+            faces,
+            trees[target],
+            count,
+            seed,
+            statistics,
+            bounds,
+            tolerance,
+            refine_budget,
+            return_samples,
+        )
+        say(f"{source} -> {target}: max {raw['max']:.6g} in {time.perf_counter() - start:.2f} s")
+        directions[source] = _directed(raw)
+    a_to_b, b_to_a = directions["A"], directions["B"]
+    upper = None
+    if bounds:
+        upper = max(float(a_to_b.upper), float(b_to_a.upper))  # type: ignore[arg-type]
+    return Hausdorff(
+        distance=max(a_to_b.max, b_to_a.max),
+        upper=upper,
+        a_to_b=a_to_b,
+        b_to_a=b_to_a,
+        seed=seed,
+        statistics=bool(statistics),
+        tolerance=tolerance,
+    )

@@ -1,0 +1,715 @@
+//! A bounding volume hierarchy over a mesh's triangles, and the nearest-triangle search.
+//!
+//! **Frame.** Coordinates are recentred on the centre `c` of the bounding box of the
+//! referenced vertices (subtracted in f64), so that the f32 boxes keep their precision
+//! far from the origin (a mesh at `x = 1e6` has f32 ulps of `0.06`; recentred, the ulps
+//! scale with the mesh's size). Queries subtract `c`, answers add it back.
+//!
+//! **Boxes.** obvhs 0.4 stores f32 boxes. Each triangle's box is computed in f64 from
+//! its recentred corners, widened by `pad = h · 2⁻⁴⁰` (`h` the largest half side of the
+//! bounding box, length), converted to f32 and rounded *outward* (`f32::next_down` /
+//! `next_up` after the conversion), so every box contains its triangle with a margin of at
+//! least `pad`, far above the f64 rounding of the distances. Inner boxes are unions of
+//! f32 boxes, so they are exact. A box's distance to the query is computed in f64 from the
+//! f32 bounds (converted exactly), so pruning never discards a triangle closer than the
+//! best found: the search returns the exact f64 minimum over all triangles.
+//!
+//! **Tree.** obvhs's PLOC builder makes a binary tree whose sibling nodes sit next to each
+//! other. [`TriangleTree`] copies it into pairs of sibling boxes (64 bytes, one cache
+//! line): visiting an inner node reads both children's boxes at once. Triangles are stored
+//! prepared ([`PreparedTriangle`]) in leaf order, so a leaf's triangles are contiguous.
+//!
+//! **Search.** Nearest-first branch and bound with an explicit stack: at each inner node
+//! both child boxes are measured; the nearer child is visited first and the farther one
+//! pushed, each only if its box is no farther than the best squared distance so far. A
+//! `hint` triangle (for instance the previous query's answer, when queries are spatially
+//! coherent) sets the starting best. Ties between triangles at exactly the same distance go
+//! to the smallest face index, and boxes at exactly the best distance are still visited,
+//! so the answer does not depend on the tree's shape, the hint, or the thread count. An
+//! empty tree answers `None`; a tree whose root is a leaf tests its triangles directly.
+//!
+//! **Early exit.** With `stop_below_d2 > 0`, the search returns as soon as it has found
+//! a triangle with squared distance `< stop_below_d2`; the answer is then an upper bound
+//! on the true distance, not the minimum. The max-only Hausdorff uses it.
+
+use std::time::Duration;
+
+use glam::{DVec3, Vec3A};
+use obvhs::BvhBuildParams;
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::Bvh2;
+use obvhs::bvh2::builder::build_bvh2;
+use obvhs::ploc::{PlocSearchDistance, SortPrecision};
+use rayon::prelude::*;
+
+use crate::closest::PreparedTriangle;
+use crate::error::{MeshError, check_finite, check_indices};
+
+/// Relative widening of every triangle box before the f32 conversion (`2⁻⁴⁰`).
+const BOX_PAD: f64 = 1.0 / (1u64 << 40) as f64;
+
+/// Recentred coordinates above this magnitude (length) do not fit f32 boxes.
+const MAX_EXTENT: f64 = 1e36;
+
+/// Queries per parallel work unit in [`TriangleTree::query`]; the hint carries over
+/// inside a unit.
+const QUERY_CHUNK: usize = 512;
+
+/// obvhs build preset: PLOC with a short search radius, a little reinsertion, and leaves
+/// of up to four triangles (measured best for closest-point queries; see
+/// `benches/bench_hausdorff.py`).
+const BUILD_PARAMS: BvhBuildParams = BvhBuildParams {
+    pre_split: false,
+    ploc_search_distance: PlocSearchDistance::Low,
+    search_depth_threshold: 2,
+    reinsertion_batch_ratio: 0.02,
+    post_collapse_reinsertion_batch_ratio_multiplier: 0.0,
+    sort_precision: SortPrecision::U64,
+    max_prims_per_leaf: 4,
+    collapse_traversal_cost: 3.0,
+};
+
+/// Two sibling boxes and what they hold: one cache line.
+#[derive(Debug, Clone, Copy, Default)]
+#[repr(C, align(64))]
+struct Pair {
+    min: [[f32; 3]; 2],
+    max: [[f32; 3]; 2],
+    /// Inner child: index of its own pair of children. Leaf: first triangle slot.
+    link: [u32; 2],
+    /// Triangles in a leaf child; 0 for an inner child.
+    count: [u32; 2],
+}
+
+impl Pair {
+    /// Squared distances (length²) from `p` to both boxes; 0 inside.
+    #[inline(always)]
+    fn distances_squared(&self, p: DVec3) -> [f64; 2] {
+        let one = |k: usize| {
+            let lo = DVec3::new(
+                self.min[k][0] as f64,
+                self.min[k][1] as f64,
+                self.min[k][2] as f64,
+            );
+            let hi = DVec3::new(
+                self.max[k][0] as f64,
+                self.max[k][1] as f64,
+                self.max[k][2] as f64,
+            );
+            let d = (lo - p).max(p - hi).max(DVec3::ZERO);
+            d.length_squared()
+        };
+        [one(0), one(1)]
+    }
+}
+
+/// A node waiting on the search stack.
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    link: u32,
+    count: u32,
+    d2: f64,
+}
+
+/// Reusable scratch space of one search thread.
+#[derive(Debug, Default)]
+pub struct SearchStack(Vec<Pending>);
+
+/// The nearest triangle to a query.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Nearest {
+    /// Storage slot of the triangle (use as a hint for the next query).
+    pub slot: u32,
+    /// Face index in the caller's face array.
+    pub face: u32,
+    /// Squared distance (length²).
+    pub d2: f64,
+    /// Closest point, in the tree's recentred frame (length).
+    pub point: DVec3,
+}
+
+/// Per query point: distance (length), closest point (caller's frame), face index.
+pub type QueryResult = (Vec<f64>, Vec<[f64; 3]>, Vec<u32>);
+
+/// Bounding volume hierarchy over one mesh's triangles. See the module docs.
+#[derive(Debug, Clone)]
+pub struct TriangleTree {
+    centre: DVec3,
+    /// Largest half side of the bounding box (length).
+    half_extent: f64,
+    pairs: Vec<Pair>,
+    /// Root: a leaf (`root_count > 0`: triangles `root_link ..`) or the pair `root_link`.
+    root_link: u32,
+    root_count: u32,
+    root_min: [f32; 3],
+    root_max: [f32; 3],
+    triangles: Vec<PreparedTriangle>,
+    faces: Vec<u32>,
+    depth: usize,
+    vertex_count: usize,
+}
+
+/// Per-triangle f32 box of recentred f64 corners, widened by `pad` and rounded outward.
+#[inline]
+fn outward_box(corners: [DVec3; 3], pad: f64) -> Aabb {
+    let lo = corners[0].min(corners[1]).min(corners[2]) - DVec3::splat(pad);
+    let hi = corners[0].max(corners[1]).max(corners[2]) + DVec3::splat(pad);
+    let down = |x: f64| (x as f32).next_down();
+    let up = |x: f64| (x as f32).next_up();
+    Aabb::new(
+        Vec3A::new(down(lo.x), down(lo.y), down(lo.z)),
+        Vec3A::new(up(hi.x), up(hi.y), up(hi.z)),
+    )
+}
+
+impl TriangleTree {
+    /// Builds the tree over `faces` (indices into `vertices`, length unit of the caller).
+    ///
+    /// An empty face list gives an empty tree (every query answers `None`).
+    pub fn build(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Result<Self, MeshError> {
+        Self::build_with(vertices, faces, BUILD_PARAMS)
+    }
+
+    pub fn build_with(
+        vertices: &[[f64; 3]],
+        faces: &[[u32; 3]],
+        params: BvhBuildParams,
+    ) -> Result<Self, MeshError> {
+        check_finite(vertices)?;
+        check_indices(faces, vertices.len())?;
+        if faces.len() >= u32::MAX as usize / 2 {
+            return Err(MeshError::Parameter(format!(
+                "{} faces exceed 2**31",
+                faces.len()
+            )));
+        }
+        let (lo, hi) = crate::complexity::referenced_bbox(vertices, faces);
+        let (lo, hi) = (DVec3::from_array(lo), DVec3::from_array(hi));
+        let (centre, half_extent) = if faces.is_empty() {
+            (DVec3::ZERO, 0.0)
+        } else {
+            ((lo + hi) * 0.5, ((hi - lo) * 0.5).max_element())
+        };
+        if half_extent.is_nan() || half_extent > MAX_EXTENT {
+            return Err(MeshError::Parameter(format!(
+                "the mesh spans {:.3e} (length): more than the supported {MAX_EXTENT:.0e}",
+                2.0 * half_extent
+            )));
+        }
+        let local = |i: u32| DVec3::from_array(vertices[i as usize]) - centre;
+        let pad = half_extent.max(f64::MIN_POSITIVE) * BOX_PAD;
+        let boxes: Vec<Aabb> = faces
+            .par_iter()
+            .map(|f| outward_box([local(f[0]), local(f[1]), local(f[2])], pad))
+            .collect();
+        let bvh = build_bvh2(&boxes, params, &mut Duration::default());
+
+        let mut tree = TriangleTree {
+            centre,
+            half_extent,
+            pairs: Vec::new(),
+            root_link: 0,
+            root_count: 0,
+            root_min: [0.0; 3],
+            root_max: [0.0; 3],
+            triangles: Vec::with_capacity(faces.len()),
+            faces: Vec::with_capacity(faces.len()),
+            depth: 0,
+            vertex_count: vertices.len(),
+        };
+        if !bvh.nodes.is_empty() {
+            tree.copy_from(&bvh, |face| {
+                let f = faces[face as usize];
+                PreparedTriangle::new(local(f[0]), local(f[1]), local(f[2]))
+            });
+        }
+
+        Ok(tree)
+    }
+
+    /// Copies obvhs's nodes into sibling pairs in depth-first order, and the triangles
+    /// into leaf order.
+    fn copy_from(&mut self, bvh: &Bvh2, prepare: impl Fn(u32) -> PreparedTriangle) {
+        let root = &bvh.nodes[0];
+        self.root_min = root.aabb.min.to_array();
+        self.root_max = root.aabb.max.to_array();
+        let push_leaf = |tree: &mut Self, first: u32, count: u32| -> u32 {
+            let slot = tree.triangles.len() as u32;
+            for &face in &bvh.primitive_indices[first as usize..(first + count) as usize] {
+                tree.triangles.push(prepare(face));
+                tree.faces.push(face);
+            }
+            slot
+        };
+        if root.is_leaf() {
+            self.root_count = root.prim_count;
+            self.root_link = push_leaf(self, root.first_index, root.prim_count);
+            self.depth = 1;
+            return;
+        }
+        // (obvhs index of the first child, our pair index, depth)
+        self.pairs.reserve(bvh.nodes.len() / 2);
+        self.pairs.push(Pair::default());
+        let mut todo = vec![(root.first_index, 0u32, 1usize)];
+        while let Some((first, pair, depth)) = todo.pop() {
+            self.depth = self.depth.max(depth + 1);
+            let mut built = Pair::default();
+            for k in 0..2 {
+                let node = &bvh.nodes[first as usize + k];
+                built.min[k] = node.aabb.min.to_array();
+                built.max[k] = node.aabb.max.to_array();
+                if node.is_leaf() {
+                    built.count[k] = node.prim_count;
+                    built.link[k] = push_leaf(self, node.first_index, node.prim_count);
+                } else {
+                    let child = self.pairs.len() as u32;
+                    self.pairs.push(Pair::default());
+                    built.link[k] = child;
+                    todo.push((node.first_index, child, depth + 1));
+                }
+            }
+            self.pairs[pair as usize] = built;
+        }
+    }
+
+    /// Number of triangles.
+    #[inline]
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Whether the tree holds no triangle.
+    #[inline]
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// Number of vertices of the mesh it was built from.
+    #[inline]
+    #[must_use]
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+
+    /// The point subtracted from every coordinate (length).
+    #[inline]
+    #[must_use]
+    pub fn centre(&self) -> DVec3 {
+        self.centre
+    }
+
+    /// Largest half side of the mesh's bounding box (length).
+    #[inline]
+    #[must_use]
+    pub fn half_extent(&self) -> f64 {
+        self.half_extent
+    }
+
+    /// Depth of the tree (a leaf root has depth 1).
+    #[inline]
+    #[must_use]
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+
+    /// The triangle in storage slot `slot` (recentred frame).
+    #[inline]
+    #[must_use]
+    pub fn triangle(&self, slot: u32) -> &PreparedTriangle {
+        &self.triangles[slot as usize]
+    }
+
+    /// A stack sized for this tree.
+    #[must_use]
+    pub fn stack(&self) -> SearchStack {
+        SearchStack(Vec::with_capacity(self.depth + 1))
+    }
+
+    /// Tests the triangles `first .. first + count` against `p`, keeping the best.
+    #[inline(always)]
+    fn test_leaf(&self, p: DVec3, first: u32, count: u32, best: &mut Nearest) {
+        for slot in first..first + count {
+            let (q, d2) = self.triangles[slot as usize].closest(p);
+            if d2 < best.d2 || (d2 == best.d2 && self.faces[slot as usize] < best.face) {
+                *best = Nearest {
+                    slot,
+                    face: self.faces[slot as usize],
+                    d2,
+                    point: q,
+                };
+            }
+        }
+    }
+
+    /// The nearest triangle to `p` (recentred frame: subtract [`centre`](Self::centre)).
+    ///
+    /// `hint`: a triangle slot to test first (`u32::MAX` for none). `stop_below_d2`: return
+    /// as soon as a triangle closer than this squared distance is found (0 for the exact
+    /// nearest). `None` only for an empty tree.
+    #[inline]
+    pub fn nearest_local(
+        &self,
+        p: DVec3,
+        hint: u32,
+        stop_below_d2: f64,
+        stack: &mut SearchStack,
+    ) -> Option<Nearest> {
+        if self.triangles.is_empty() {
+            return None;
+        }
+        let mut best = Nearest {
+            slot: u32::MAX,
+            face: u32::MAX,
+            d2: f64::INFINITY,
+            point: p,
+        };
+        if (hint as usize) < self.triangles.len() {
+            self.test_leaf(p, hint, 1, &mut best);
+            if best.d2 < stop_below_d2 {
+                return Some(best);
+            }
+        }
+        if self.root_count > 0 {
+            self.test_leaf(p, self.root_link, self.root_count, &mut best);
+            return Some(best);
+        }
+        let stack = &mut stack.0;
+        stack.clear();
+        let mut current = self.root_link;
+        'descend: loop {
+            let pair = &self.pairs[current as usize];
+            let [d0, d1] = pair.distances_squared(p);
+            let (near, far, dn, df) = if d0 <= d1 {
+                (0, 1, d0, d1)
+            } else {
+                (1, 0, d1, d0)
+            };
+            if dn <= best.d2 {
+                if df <= best.d2 {
+                    stack.push(Pending {
+                        link: pair.link[far],
+                        count: pair.count[far],
+                        d2: df,
+                    });
+                }
+                if pair.count[near] == 0 {
+                    current = pair.link[near];
+                    continue 'descend;
+                }
+                self.test_leaf(p, pair.link[near], pair.count[near], &mut best);
+                if best.d2 < stop_below_d2 {
+                    return Some(best);
+                }
+            }
+            while let Some(next) = stack.pop() {
+                if next.d2 > best.d2 {
+                    continue;
+                }
+                if next.count == 0 {
+                    current = next.link;
+                    continue 'descend;
+                }
+                self.test_leaf(p, next.link, next.count, &mut best);
+                if best.d2 < stop_below_d2 {
+                    return Some(best);
+                }
+            }
+            return Some(best);
+        }
+    }
+
+    /// Exact nearest triangle to each point (caller's frame), in parallel.
+    ///
+    /// Returns, per point, the distance (length), the closest point (caller's frame,
+    /// length) and the face index. Results do not depend on the thread count.
+    pub fn query(&self, points: &[[f64; 3]]) -> Result<QueryResult, MeshError> {
+        if self.is_empty() {
+            return Err(MeshError::Empty("the tree holds no triangles".into()));
+        }
+        check_finite(points).map_err(|e| match e {
+            MeshError::NonFinite { vertex } => {
+                MeshError::Parameter(format!("point {vertex} has a NaN or infinite coordinate"))
+            }
+            other => other,
+        })?;
+        let n = points.len();
+        let (mut dist, mut closest, mut face) = (vec![0.0; n], vec![[0.0; 3]; n], vec![0u32; n]);
+        points
+            .par_chunks(QUERY_CHUNK)
+            .zip(dist.par_chunks_mut(QUERY_CHUNK))
+            .zip(closest.par_chunks_mut(QUERY_CHUNK))
+            .zip(face.par_chunks_mut(QUERY_CHUNK))
+            .for_each(|(((pts, dist), closest), face)| {
+                let mut stack = self.stack();
+                let mut hint = u32::MAX;
+                for (i, p) in pts.iter().enumerate() {
+                    let local = DVec3::from_array(*p) - self.centre;
+                    if let Some(hit) = self.nearest_local(local, hint, 0.0, &mut stack) {
+                        hint = hit.slot;
+                        dist[i] = hit.d2.sqrt();
+                        closest[i] = (hit.point + self.centre).to_array();
+                        face[i] = hit.face;
+                    }
+                }
+            });
+        Ok((dist, closest, face))
+    }
+
+    /// Checks the tree's invariants: every triangle slot sits in exactly one leaf, every
+    /// triangle lies inside its leaf's box (in f64, margin `pad` included), every child
+    /// box lies inside its parent's box, and the face map is a permutation.
+    pub fn validate(&self) -> Result<(), String> {
+        let n = self.triangles.len();
+        if self.faces.len() != n {
+            return Err(format!("{} faces for {n} triangles", self.faces.len()));
+        }
+        let mut seen_face = vec![false; n];
+        for &f in &self.faces {
+            let slot = seen_face
+                .get_mut(f as usize)
+                .ok_or(format!("face {f} out of range"))?;
+            if std::mem::replace(slot, true) {
+                return Err(format!("face {f} stored twice"));
+            }
+        }
+        if n == 0 {
+            return if self.pairs.is_empty() {
+                Ok(())
+            } else {
+                Err("empty tree with nodes".into())
+            };
+        }
+        let mut seen_slot = vec![false; n];
+        let inside = |min: &[f32; 3], max: &[f32; 3], p: DVec3| {
+            (0..3).all(|k| min[k] as f64 <= p[k] && p[k] <= max[k] as f64)
+        };
+        let mut check_leaf = |first: u32, count: u32, min: &[f32; 3], max: &[f32; 3]| {
+            if count == 0 || (first + count) as usize > n {
+                return Err(format!("leaf {first}+{count} out of range"));
+            }
+            for slot in first..first + count {
+                if std::mem::replace(&mut seen_slot[slot as usize], true) {
+                    return Err(format!("slot {slot} in two leaves"));
+                }
+                for corner in self.triangles[slot as usize].corners() {
+                    if !inside(min, max, corner) {
+                        return Err(format!("slot {slot}: corner {corner} outside its box"));
+                    }
+                }
+            }
+            Ok(())
+        };
+        if self.root_count > 0 {
+            check_leaf(
+                self.root_link,
+                self.root_count,
+                &self.root_min,
+                &self.root_max,
+            )?;
+        } else {
+            let mut seen_pair = vec![false; self.pairs.len()];
+            let mut todo = vec![(self.root_link, self.root_min, self.root_max)];
+            while let Some((index, pmin, pmax)) = todo.pop() {
+                let pair = self
+                    .pairs
+                    .get(index as usize)
+                    .ok_or(format!("pair {index} missing"))?;
+                if std::mem::replace(&mut seen_pair[index as usize], true) {
+                    return Err(format!("pair {index} reached twice"));
+                }
+                for k in 0..2 {
+                    let (min, max) = (pair.min[k], pair.max[k]);
+                    let corners = [
+                        DVec3::from_array(min.map(f64::from)),
+                        DVec3::from_array(max.map(f64::from)),
+                    ];
+                    if !corners.iter().all(|&c| inside(&pmin, &pmax, c)) {
+                        return Err(format!("pair {index} child {k} outside its parent"));
+                    }
+                    if pair.count[k] > 0 {
+                        check_leaf(pair.link[k], pair.count[k], &min, &max)?;
+                    } else {
+                        todo.push((pair.link[k], min, max));
+                    }
+                }
+            }
+            if let Some(p) = seen_pair.iter().position(|s| !s) {
+                return Err(format!("pair {p} unreachable"));
+            }
+        }
+        match seen_slot.iter().position(|s| !s) {
+            Some(slot) => Err(format!("triangle slot {slot} unreachable")),
+            None => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::closest::closest_point_on_triangle;
+
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*state >> 11) as f64) / ((1u64 << 53) as f64)
+    }
+
+    /// A random soup of `n` small triangles in the unit cube, some degenerate.
+    fn soup(n: usize, seed: u64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        let mut s = seed;
+        let mut v = Vec::new();
+        let mut f = Vec::new();
+        for i in 0..n {
+            let c = [lcg(&mut s), lcg(&mut s), lcg(&mut s)];
+            let base = v.len() as u32;
+            for _ in 0..3 {
+                v.push([
+                    c[0] + 0.1 * lcg(&mut s),
+                    c[1] + 0.1 * lcg(&mut s),
+                    c[2] + 0.1 * lcg(&mut s),
+                ]);
+            }
+            match i % 7 {
+                0 => f.push([base, base, base + 1]),
+                1 => {
+                    let (a, b) = (v[base as usize], v[base as usize + 1]);
+                    v[base as usize + 2] = [
+                        (a[0] + b[0]) / 2.0,
+                        (a[1] + b[1]) / 2.0,
+                        (a[2] + b[2]) / 2.0,
+                    ];
+                    f.push([base, base + 1, base + 2]);
+                }
+                _ => f.push([base, base + 1, base + 2]),
+            }
+        }
+        (v, f)
+    }
+
+    fn brute(v: &[[f64; 3]], f: &[[u32; 3]], p: DVec3) -> (f64, u32) {
+        let at = |i: u32| DVec3::from_array(v[i as usize]);
+        f.iter()
+            .enumerate()
+            .map(|(i, t)| {
+                (
+                    closest_point_on_triangle(p, at(t[0]), at(t[1]), at(t[2])).1,
+                    i as u32,
+                )
+            })
+            .fold(
+                (f64::INFINITY, u32::MAX),
+                |a, b| if b.0 < a.0 { b } else { a },
+            )
+    }
+
+    #[test]
+    fn every_size_from_1_to_100_validates_and_matches_brute_force() {
+        for n in 1..=100 {
+            let (v, f) = soup(n, n as u64);
+            let tree = TriangleTree::build(&v, &f).unwrap();
+            tree.validate().unwrap_or_else(|e| panic!("n = {n}: {e}"));
+            assert_eq!(tree.len(), n);
+            let mut s = 99 + n as u64;
+            let mut stack = tree.stack();
+            for _ in 0..20 {
+                let p = DVec3::new(
+                    lcg(&mut s) * 1.4 - 0.2,
+                    lcg(&mut s) * 1.4 - 0.2,
+                    lcg(&mut s) * 1.4 - 0.2,
+                );
+                let hit = tree
+                    .nearest_local(p - tree.centre(), u32::MAX, 0.0, &mut stack)
+                    .unwrap();
+                let (d2, _) = brute(&v, &f, p);
+                // Same triangles, recentred: equal up to rounding.
+                assert!(
+                    (hit.d2.sqrt() - d2.sqrt()).abs() < 1e-14,
+                    "n = {n}: {} vs {}",
+                    hit.d2,
+                    d2
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn hints_and_early_exit() {
+        let (v, f) = soup(500, 3);
+        let tree = TriangleTree::build(&v, &f).unwrap();
+        let mut stack = tree.stack();
+        let p = DVec3::new(0.5, 0.5, 0.5) - tree.centre();
+        let exact = tree.nearest_local(p, u32::MAX, 0.0, &mut stack).unwrap();
+        for hint in [0, 17, 499] {
+            assert_eq!(tree.nearest_local(p, hint, 0.0, &mut stack).unwrap(), exact);
+        }
+        // Stopping below a huge threshold returns the hint itself.
+        let early = tree
+            .nearest_local(p, 17, f64::INFINITY, &mut stack)
+            .unwrap();
+        assert_eq!(early.slot, 17);
+        assert!(early.d2 >= exact.d2);
+    }
+
+    #[test]
+    fn empty_tree_and_leaf_root() {
+        let tree = TriangleTree::build(&[[0.0; 3]], &[]).unwrap();
+        tree.validate().unwrap();
+        assert!(
+            tree.nearest_local(DVec3::ZERO, u32::MAX, 0.0, &mut tree.stack())
+                .is_none()
+        );
+        assert!(tree.query(&[[0.0; 3]]).is_err());
+        let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let tree = TriangleTree::build(&v, &[[0, 1, 2]]).unwrap();
+        tree.validate().unwrap();
+        let (d, q, face) = tree.query(&[[0.25, 0.25, 2.0]]).unwrap();
+        assert_eq!((d[0], face[0]), (2.0, 0));
+        assert_eq!(q[0], [0.25, 0.25, 0.0]);
+    }
+
+    #[test]
+    fn ties_go_to_the_smallest_face_index() {
+        // The same triangle four times, in a larger mesh.
+        let (mut v, mut f) = soup(50, 5);
+        let base = v.len() as u32;
+        v.extend([[2.0, 2.0, 2.0], [3.0, 2.0, 2.0], [2.0, 3.0, 2.0]]);
+        for _ in 0..4 {
+            f.push([base, base + 1, base + 2]);
+        }
+        let tree = TriangleTree::build(&v, &f).unwrap();
+        let (_, _, face) = tree.query(&[[2.2, 2.2, 2.5]]).unwrap();
+        assert_eq!(face[0], 50);
+    }
+
+    #[test]
+    fn far_from_the_origin() {
+        let (v, f) = soup(200, 8);
+        let shifted: Vec<[f64; 3]> = v.iter().map(|p| p.map(|x| x + 1e6)).collect();
+        let (t0, t1) = (
+            TriangleTree::build(&v, &f).unwrap(),
+            TriangleTree::build(&shifted, &f).unwrap(),
+        );
+        t1.validate().unwrap();
+        let pts: Vec<[f64; 3]> = (0..50).map(|i| [0.01 * i as f64, 0.5, 0.3]).collect();
+        let pts_shifted: Vec<[f64; 3]> = pts.iter().map(|p| p.map(|x| x + 1e6)).collect();
+        let (d0, _, f0) = t0.query(&pts).unwrap();
+        let (d1, _, f1) = t1.query(&pts_shifted).unwrap();
+        assert_eq!(f0, f1);
+        for (a, b) in d0.iter().zip(&d1) {
+            assert!((a - b).abs() < 1e-9, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn non_finite_points_are_refused() {
+        let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let tree = TriangleTree::build(&v, &[[0, 1, 2]]).unwrap();
+        assert!(tree.query(&[[f64::NAN, 0.0, 0.0]]).is_err());
+        assert!(TriangleTree::build(&[[f64::INFINITY, 0.0, 0.0]], &[[0, 0, 0]]).is_err());
+        assert!(TriangleTree::build(&v, &[[0, 1, 3]]).is_err());
+    }
+}

@@ -1,0 +1,674 @@
+//! The sampled one-sided Hausdorff distance, with a certified upper bound.
+//!
+//! The one-sided distance from a source surface `A` to a target surface `B` is
+//! `h(A, B) = max over p in A of d(p, B)`, `d(p, B) = min over q in B of |p - q|`
+//! (length); the Hausdorff distance of King & Rossignac (1999, Sec. 3.2) is
+//! `H(A, B) = max(h(A, B), h(B, A))`. Here `A` is replaced by its sample set
+//! ([`crate::sampling`]): every referenced vertex plus `N` seeded area samples. Each
+//! sample's `d(p, B)` is the exact f64 minimum over `B`'s triangles ([`crate::bvh`]).
+//!
+//! **Two modes.** With `statistics`, every sample's distance is computed in full, which
+//! gives the mean, RMS and percentiles. Without it, only the maximum is wanted: samples
+//! are searched against a shared running maximum `m` (an exact distance of some sample),
+//! and a sample whose search has found a triangle closer than `m` cannot raise the maximum,
+//! so its search stops there (usually after testing one hint triangle). A sample whose
+//! true distance equals the final maximum is never stopped early, so the maximum and its
+//! sample (the smallest sample index among ties) do not depend on the thread count.
+//!
+//! **Certified upper bound.** Two bounds hold on any source triangle `T` (and on any
+//! piece of it), and the smaller one is kept:
+//!
+//! * *Lipschitz*: `d(·, B)` is 1-Lipschitz. If the corners have distances at most
+//!   `d₀, d₁, d₂` and `R_T` is the covering radius of `T` by its corners
+//!   ([`covering_radius`]), every point of `T` is within `R_T` of a corner, so
+//!   `max over T of d(·, B) ≤ max(d₀, d₁, d₂) + R_T`.
+//! * *Convex*: for any one target triangle `t`, `d(·, B) ≤ d(·, t)`, and `d(·, t)` is the
+//!   distance to a convex set, a convex function, whose maximum over `T` is reached at a
+//!   corner. So `max over T of d(·, B) ≤ max_i d(v_i, t)`, tried for the target triangles
+//!   found for the three corners. It is exact when the corners share their nearest
+//!   triangle, which the Lipschitz bound never is on flat, parallel pieces.
+//!
+//! The largest bound over the source triangles bounds `h(A, B)` from above; the sampled
+//! maximum (the largest exact distance of any point evaluated) bounds it from below. With
+//! a tolerance `τ`, each triangle whose bound exceeds `lower + τ` is split at its edge
+//! midpoints into four similar triangles of half the covering radius, the three midpoints
+//! are evaluated, and so on, level by level, until every bound is `≤ lower + τ` (then
+//! `upper - lower ≤ τ`) or a query budget is spent. The Lipschitz bound guarantees the end:
+//! once `R ≤ τ` a piece settles. A midpoint only has to show
+//! `d ≤ t = min(lower, lower + τ - R_child)`: its search stops as soon as it finds a
+//! triangle closer than `t` and records `t` (a valid upper bound), otherwise it is exact.
+//! A level is evaluated against the `lower` of its start, so the result does not depend
+//! on the thread count. Distances carry f64 rounding (relative ~1e-15): every upper bound
+//! is raised by `2⁻⁴⁰ (h_B + bound)` (`h_B` the target's half extent) to cover it, so
+//! tolerances below about `1e-12 h_B` cannot be reached.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::bvh::{SearchStack, TriangleTree};
+use crate::closest::covering_radius;
+use crate::complexity::deterministic_sum;
+use crate::error::{MeshError, check_finite, check_indices};
+use crate::sampling::{SurfaceSamples, local_corners, surface_samples};
+
+/// Samples per parallel work unit; a unit runs sequentially, each search starting from
+/// the previous sample's nearest triangle.
+const SAMPLE_CHUNK: usize = 1024;
+
+/// Relative margin added to every upper bound for the f64 rounding of the distances
+/// (`2⁻⁴⁰`, times the target's half extent plus the bound; dimensionless).
+const ROUNDING_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
+
+/// Cells per parallel work unit during refinement.
+const CELL_CHUNK: usize = 256;
+
+/// What to compute; see the module docs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Options {
+    /// Area samples `N` (the referenced vertices are always sampled too).
+    pub area_samples: usize,
+    pub seed: u64,
+    /// Every sample's exact distance (mean, RMS, percentiles) rather than the maximum only.
+    pub statistics: bool,
+    /// Compute the certified upper bound.
+    pub bounds: bool,
+    /// Refine until `upper - lower <= tolerance` (length); implies `bounds`.
+    pub tolerance: Option<f64>,
+    /// Largest number of extra point queries the refinement may spend.
+    pub refine_budget: usize,
+    /// Return every sample with its distance, and the per-vertex distances.
+    pub return_samples: bool,
+}
+
+/// Statistics of the sample distances (length).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Statistics {
+    pub mean: f64,
+    pub rms: f64,
+    /// 50th, 95th and 99th percentiles, linear interpolation between order statistics (as
+    /// numpy's default).
+    pub p50: f64,
+    pub p95: f64,
+    pub p99: f64,
+}
+
+/// The certified interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bounds {
+    /// Upper bound on `h(A, B)` (length).
+    pub upper: f64,
+    /// Refinement points evaluated (in addition to the samples).
+    pub refined_points: usize,
+    /// Triangles split during refinement.
+    pub refined_cells: usize,
+    /// `Some(true)` when `upper - lower <= tolerance` was reached, `Some(false)` when the
+    /// budget ran out first, `None` without a tolerance.
+    pub converged: Option<bool>,
+}
+
+/// Per-sample output.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleData {
+    /// Sample points, caller's frame (length).
+    pub points: Vec<[f64; 3]>,
+    /// Face of the source each sample lies on (`u32::MAX` for vertex samples).
+    pub faces: Vec<u32>,
+    /// Exact distance of each sample (length).
+    pub distances: Vec<f64>,
+    /// Distance of each source vertex (length); NaN for unreferenced vertices.
+    pub vertex_distances: Vec<f64>,
+}
+
+/// The one-sided distance from a source mesh to a target tree.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Directed {
+    pub n_samples: usize,
+    pub n_vertex_samples: usize,
+    /// Largest exact distance found at any evaluated point (samples, and refinement points
+    /// with a tolerance): a lower bound on `h(A, B)` (length).
+    pub max: f64,
+    /// The point achieving `max` (caller's frame), its closest point on the target, and
+    /// the target face holding it.
+    pub argmax: [f64; 3],
+    pub argmax_closest: [f64; 3],
+    pub argmax_face: u32,
+    pub statistics: Option<Statistics>,
+    pub bounds: Option<Bounds>,
+    pub samples: Option<SampleData>,
+}
+
+/// The best exact distance so far: `(d², sample index)`, ties to the smaller index.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Best {
+    d2: f64,
+    index: usize,
+}
+
+impl Best {
+    const NONE: Best = Best {
+        d2: f64::NEG_INFINITY,
+        index: usize::MAX,
+    };
+
+    #[inline]
+    fn offer(&mut self, d2: f64, index: usize) {
+        if d2 > self.d2 || (d2 == self.d2 && index < self.index) {
+            *self = Best { d2, index };
+        }
+    }
+
+    #[inline]
+    fn merge(self, other: Best) -> Best {
+        let mut out = self;
+        out.offer(other.d2, other.index);
+        out
+    }
+}
+
+/// Exact squared distance of every point, in parallel; also returns each point's nearest
+/// triangle slot (the hint for later searches).
+fn exact_distances(tree: &TriangleTree, points: &[DVec3]) -> (Vec<f64>, Vec<u32>) {
+    let mut d2 = vec![0.0; points.len()];
+    let mut slots = vec![0u32; points.len()];
+    points
+        .par_chunks(SAMPLE_CHUNK)
+        .zip(d2.par_chunks_mut(SAMPLE_CHUNK))
+        .zip(slots.par_chunks_mut(SAMPLE_CHUNK))
+        .for_each(|((pts, d2), slots)| {
+            let mut stack = tree.stack();
+            let mut hint = u32::MAX;
+            for (k, &p) in pts.iter().enumerate() {
+                if let Some(hit) = tree.nearest_local(p, hint, 0.0, &mut stack) {
+                    hint = hit.slot;
+                    d2[k] = hit.d2;
+                    slots[k] = hit.slot;
+                }
+            }
+        });
+    (d2, slots)
+}
+
+/// Max-only pass over `points` (indices offset by `first`): returns the best exact
+/// distance among them, given a running maximum `start_d2` already known.
+fn max_only(tree: &TriangleTree, points: &[DVec3], first: usize, start_d2: f64) -> Best {
+    let running = AtomicU64::new(start_d2.max(0.0).to_bits());
+    points
+        .par_chunks(SAMPLE_CHUNK)
+        .enumerate()
+        .map(|(chunk, pts)| {
+            let mut stack = tree.stack();
+            let mut hint = u32::MAX;
+            let mut best = Best::NONE;
+            for (k, &p) in pts.iter().enumerate() {
+                // Non-negative f64 order like their bit patterns.
+                let threshold = f64::from_bits(running.load(Ordering::Relaxed));
+                let Some(hit) = tree.nearest_local(p, hint, threshold, &mut stack) else {
+                    continue;
+                };
+                hint = hit.slot;
+                if hit.d2 >= threshold {
+                    // The search ran to completion: exact.
+                    best.offer(hit.d2, first + chunk * SAMPLE_CHUNK + k);
+                    if hit.d2 > threshold {
+                        running.fetch_max(hit.d2.to_bits(), Ordering::Relaxed);
+                    }
+                }
+            }
+            best
+        })
+        .reduce(|| Best::NONE, Best::merge)
+}
+
+/// Linear-interpolation percentile of sorted values, `q` in `[0, 100]`.
+#[must_use]
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    let h = (sorted.len() - 1) as f64 * q / 100.0;
+    let lo = h.floor() as usize;
+    let hi = (lo + 1).min(sorted.len() - 1);
+    sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
+}
+
+fn statistics(distances: &[f64]) -> Statistics {
+    let n = distances.len() as f64;
+    let squares: Vec<f64> = distances.par_iter().map(|d| d * d).collect();
+    let mut sorted = distances.to_vec();
+    sorted.par_sort_unstable_by(f64::total_cmp);
+    Statistics {
+        mean: deterministic_sum(distances) / n,
+        rms: (deterministic_sum(&squares) / n).sqrt(),
+        p50: percentile(&sorted, 50.0),
+        p95: percentile(&sorted, 95.0),
+        p99: percentile(&sorted, 99.0),
+    }
+}
+
+/// A source triangle (or a piece of one) in the refinement (target's frame): its corners,
+/// upper bounds `d` on their distances (length), the target triangle slots found for them,
+/// its covering radius `r` (length) and its certified bound `upper` (length).
+#[derive(Debug, Clone, Copy)]
+struct Cell {
+    v: [DVec3; 3],
+    d: [f64; 3],
+    slot: [u32; 3],
+    r: f64,
+    upper: f64,
+}
+
+impl Cell {
+    /// `min(Lipschitz bound, convex bound)`; see the module docs.
+    fn new(tree: &TriangleTree, v: [DVec3; 3], d: [f64; 3], slot: [u32; 3], r: f64) -> Cell {
+        let lipschitz = d[0].max(d[1]).max(d[2]) + r;
+        let mut convex = f64::INFINITY;
+        for (k, &s) in slot.iter().enumerate() {
+            if slot[..k].contains(&s) {
+                continue;
+            }
+            let t = tree.triangle(s);
+            let worst = v.iter().map(|&p| t.closest(p).1).fold(0.0, f64::max);
+            convex = convex.min(worst.sqrt());
+        }
+        let upper = lipschitz.min(convex);
+        Cell {
+            v,
+            d,
+            slot,
+            r,
+            upper: upper + ROUNDING_MARGIN * (tree.half_extent() + upper),
+        }
+    }
+}
+
+/// A refinement point's outcome: the recorded upper bound on its distance and the target
+/// triangle found for it; `exact` when the search ran to completion.
+#[derive(Debug, Clone, Copy)]
+struct Probe {
+    point: DVec3,
+    /// Upper bound on the distance (length): exact, or `t` after an early exit.
+    d: f64,
+    /// Squared distance to the triangle found (length²).
+    d2: f64,
+    slot: u32,
+    exact: bool,
+}
+
+/// Splits a cell at its edge midpoints, evaluating each with early exit below `t`.
+fn split(
+    tree: &TriangleTree,
+    cell: &Cell,
+    lower: f64,
+    tol: f64,
+    stack: &mut SearchStack,
+) -> ([Cell; 4], [Probe; 3]) {
+    let r = cell.r * 0.5;
+    let t = lower.min(lower + tol - r);
+    let stop = if t > 0.0 { t * t } else { 0.0 };
+    let [a, b, c] = cell.v;
+    let mut hint = cell.slot[0];
+    let mut probe = |p: DVec3| {
+        let hit = tree
+            .nearest_local(p, hint, stop, stack)
+            .expect("tree is not empty");
+        hint = hit.slot;
+        let exact = hit.d2 >= stop;
+        Probe {
+            point: p,
+            d: if exact { hit.d2.sqrt() } else { t },
+            d2: hit.d2,
+            slot: hit.slot,
+            exact,
+        }
+    };
+    let (m0, m1, m2) = (
+        probe((a + b) * 0.5),
+        probe((b + c) * 0.5),
+        probe((c + a) * 0.5),
+    );
+    let [da, db, dc] = cell.d;
+    let [sa, sb, sc] = cell.slot;
+    let child = |v, d, slot| Cell::new(tree, v, d, slot, r);
+    let cells = [
+        child(
+            [a, m0.point, m2.point],
+            [da, m0.d, m2.d],
+            [sa, m0.slot, m2.slot],
+        ),
+        child(
+            [m0.point, b, m1.point],
+            [m0.d, db, m1.d],
+            [m0.slot, sb, m1.slot],
+        ),
+        child(
+            [m2.point, m1.point, c],
+            [m2.d, m1.d, dc],
+            [m2.slot, m1.slot, sc],
+        ),
+        child(
+            [m0.point, m1.point, m2.point],
+            [m0.d, m1.d, m2.d],
+            [m0.slot, m1.slot, m2.slot],
+        ),
+    ];
+    (cells, [m0, m1, m2])
+}
+
+/// The one-sided sampled distance from the source mesh to `tree`. See the module docs.
+pub fn directed(
+    vertices: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    tree: &TriangleTree,
+    opts: &Options,
+) -> Result<Directed, MeshError> {
+    if faces.is_empty() || vertices.is_empty() {
+        return Err(MeshError::Empty("the source mesh has no faces".into()));
+    }
+    if tree.is_empty() {
+        return Err(MeshError::Empty("the target mesh has no faces".into()));
+    }
+    check_finite(vertices)?;
+    check_indices(faces, vertices.len())?;
+    if let Some(tol) = opts.tolerance
+        && (tol.is_nan() || tol <= 0.0 || tol.is_infinite())
+    {
+        return Err(MeshError::Parameter(format!(
+            "tolerance must be positive and finite, got {tol}"
+        )));
+    }
+    let centre = tree.centre();
+    let samples: SurfaceSamples =
+        surface_samples(vertices, faces, centre, opts.area_samples, opts.seed)?;
+    let points = &samples.points;
+    let nv = samples.vertex_count();
+    let bounds_wanted = opts.bounds || opts.tolerance.is_some();
+    let full = opts.statistics || opts.return_samples;
+
+    // Exact distances where needed: all samples (full), or the vertices (bounds).
+    let (exact_d2, vertex_slots, mut best) = if full {
+        let (d2, slots) = exact_distances(tree, points);
+        let best = d2
+            .par_iter()
+            .enumerate()
+            .map(|(i, &d2)| Best { d2, index: i })
+            .reduce(|| Best::NONE, Best::merge);
+        (d2, slots, best)
+    } else if bounds_wanted {
+        let (d2, slots) = exact_distances(tree, &points[..nv]);
+        let start = d2.iter().copied().fold(0.0, f64::max);
+        let vbest = d2
+            .iter()
+            .enumerate()
+            .fold(Best::NONE, |b, (i, &d2)| b.merge(Best { d2, index: i }));
+        (
+            d2,
+            slots,
+            vbest.merge(max_only(tree, &points[nv..], nv, start)),
+        )
+    } else {
+        (Vec::new(), Vec::new(), max_only(tree, points, 0, 0.0))
+    };
+    let mut argmax_point = points[best.index];
+
+    // Per-vertex distances (NaN: unreferenced), from the exact vertex samples.
+    let vertex_distances = (!exact_d2.is_empty()).then(|| {
+        let mut out = vec![f64::NAN; vertices.len()];
+        for (k, &v) in samples.vertex_ids.iter().enumerate() {
+            out[v as usize] = exact_d2[k].sqrt();
+        }
+        out
+    });
+
+    let mut bounds = None;
+    if bounds_wanted {
+        let vd = vertex_distances
+            .as_ref()
+            .expect("vertex distances are exact with bounds");
+        let mut slot_of = vec![u32::MAX; vertices.len()];
+        for (k, &v) in samples.vertex_ids.iter().enumerate() {
+            slot_of[v as usize] = vertex_slots[k];
+        }
+        let level0 = |f: &[u32; 3]| {
+            let v = local_corners(vertices, *f, centre);
+            let (d, slot) = (f.map(|i| vd[i as usize]), f.map(|i| slot_of[i as usize]));
+            Cell::new(tree, v, d, slot, covering_radius(v[0], v[1], v[2]))
+        };
+        let mut lower = best.d2.sqrt();
+        let (mut refined_points, mut refined_cells, mut converged) = (0, 0, None);
+        let mut settled = 0.0_f64;
+        if let Some(tol) = opts.tolerance {
+            let mut active: Vec<Cell> = faces.par_iter().map(level0).collect();
+            let mut next_index = points.len();
+            loop {
+                let limit = lower + tol;
+                settled = active
+                    .par_iter()
+                    .map(|c| c.upper)
+                    .filter(|&u| u <= limit)
+                    .reduce(|| settled, f64::max);
+                active = active.into_par_iter().filter(|c| c.upper > limit).collect();
+                if active.is_empty() {
+                    converged = Some(true);
+                    break;
+                }
+                if refined_points + 3 * active.len() > opts.refine_budget {
+                    converged = Some(false);
+                    settled = active
+                        .par_iter()
+                        .map(|c| c.upper)
+                        .reduce(|| settled, f64::max);
+                    break;
+                }
+                let level: Vec<([Cell; 4], [Probe; 3])> = active
+                    .par_chunks(CELL_CHUNK)
+                    .flat_map_iter(|cells| {
+                        let mut stack = tree.stack();
+                        cells
+                            .iter()
+                            .map(|c| split(tree, c, lower, tol, &mut stack))
+                            .collect::<Vec<_>>()
+                    })
+                    .collect();
+                refined_cells += active.len();
+                refined_points += 3 * active.len();
+                // New exact maxima, in a fixed order (the first strictly larger one wins).
+                for (_, probes) in &level {
+                    for p in probes {
+                        if p.exact && p.d2 > best.d2 {
+                            best = Best {
+                                d2: p.d2,
+                                index: next_index,
+                            };
+                            argmax_point = p.point;
+                        }
+                    }
+                }
+                next_index += 3 * active.len();
+                lower = best.d2.sqrt();
+                active = level.into_iter().flat_map(|(cells, _)| cells).collect();
+            }
+        } else {
+            settled = faces
+                .par_iter()
+                .map(|f| level0(f).upper)
+                .reduce(|| 0.0, f64::max);
+        }
+        bounds = Some(Bounds {
+            upper: settled.max(lower),
+            refined_points,
+            refined_cells,
+            converged,
+        });
+    }
+
+    // The closest point of the maximum, searched again in full (deterministic tie-break).
+    let hit = tree
+        .nearest_local(argmax_point, u32::MAX, 0.0, &mut tree.stack())
+        .expect("tree is not empty");
+    debug_assert_eq!(hit.d2, best.d2);
+    let statistics = (opts.statistics && full).then(|| {
+        let d: Vec<f64> = exact_d2.par_iter().map(|d2| d2.sqrt()).collect();
+        statistics(&d)
+    });
+    let sample_data = opts.return_samples.then(|| SampleData {
+        points: points
+            .par_iter()
+            .map(|p| (*p + centre).to_array())
+            .collect(),
+        faces: samples.faces(),
+        distances: exact_d2.par_iter().map(|d2| d2.sqrt()).collect(),
+        vertex_distances: vertex_distances.clone().unwrap_or_default(),
+    });
+    Ok(Directed {
+        n_samples: points.len(),
+        n_vertex_samples: nv,
+        max: best.d2.sqrt(),
+        argmax: (argmax_point + centre).to_array(),
+        argmax_closest: (hit.point + centre).to_array(),
+        argmax_face: hit.face,
+        statistics,
+        bounds,
+        samples: sample_data,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn options() -> Options {
+        Options {
+            area_samples: 2000,
+            seed: 1,
+            statistics: true,
+            bounds: true,
+            tolerance: None,
+            refine_budget: 1_000_000,
+            return_samples: false,
+        }
+    }
+
+    /// A unit square in the plane `z`, split into `2 n²` triangles.
+    fn square(n: u32, z: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        let mut v = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                v.push([i as f64 / n as f64, j as f64 / n as f64, z]);
+            }
+        }
+        let mut f = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let k = j * (n + 1) + i;
+                f.push([k, k + 1, k + n + 2]);
+                f.push([k, k + n + 2, k + n + 1]);
+            }
+        }
+        (v, f)
+    }
+
+    #[test]
+    fn parallel_squares_at_distance_d() {
+        let (va, fa) = square(4, 0.0);
+        let (vb, fb) = square(7, 0.3);
+        let tree = TriangleTree::build(&vb, &fb).unwrap();
+        for opts in [
+            options(),
+            Options {
+                statistics: false,
+                ..options()
+            },
+        ] {
+            let r = directed(&va, &fa, &tree, &opts).unwrap();
+            assert!((r.max - 0.3).abs() < 1e-12, "{}", r.max);
+            assert!(r.bounds.unwrap().upper >= 0.3 - 1e-12);
+            let refined = directed(
+                &va,
+                &fa,
+                &tree,
+                &Options {
+                    tolerance: Some(1e-6),
+                    ..opts
+                },
+            )
+            .unwrap();
+            let b = refined.bounds.unwrap();
+            assert_eq!(b.converged, Some(true));
+            assert!((b.upper - 0.3).abs() <= 1e-6, "{}", b.upper);
+        }
+        let s = directed(&va, &fa, &tree, &options())
+            .unwrap()
+            .statistics
+            .unwrap();
+        for x in [s.mean, s.rms, s.p50, s.p95, s.p99] {
+            assert!((x - 0.3).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn bump_refines_to_the_tolerance() {
+        // Target: flat square; source: the same square with its centre vertex raised by
+        // 0.2, so h(A, B) = 0.2 exactly at that vertex, and h(B, A) is below it.
+        let (vb, fb) = square(2, 0.0);
+        let (mut va, fa) = square(2, 0.0);
+        va[4][2] = 0.2;
+        let ta = TriangleTree::build(&va, &fa).unwrap();
+        let opts = Options {
+            area_samples: 50,
+            statistics: false,
+            tolerance: Some(1e-4),
+            ..options()
+        };
+        let r = directed(&vb, &fb, &ta, &opts).unwrap();
+        let b = r.bounds.unwrap();
+        assert_eq!(b.converged, Some(true));
+        assert!(b.upper - r.max <= 1e-4 + 1e-15, "{} {}", b.upper, r.max);
+        // The true value: the flat centre (0.5, 0.5, 0) against the raised cone.
+        let truth = {
+            let tb = TriangleTree::build(&va, &fa).unwrap();
+            let (d, _, _) = tb.query(&[[0.5, 0.5, 0.0]]).unwrap();
+            d[0]
+        };
+        assert!(
+            r.max <= truth + 1e-12 && truth <= b.upper + 1e-12,
+            "{} {} {}",
+            r.max,
+            truth,
+            b.upper
+        );
+    }
+
+    #[test]
+    fn max_only_agrees_with_full_statistics() {
+        let (va, fa) = square(9, 0.0);
+        let (mut vb, fb) = square(5, 0.0);
+        for (i, p) in vb.iter_mut().enumerate() {
+            p[2] = 0.05 * ((i * 7919) % 13) as f64 / 13.0;
+        }
+        let tree = TriangleTree::build(&vb, &fb).unwrap();
+        let full = directed(
+            &va,
+            &fa,
+            &tree,
+            &Options {
+                bounds: false,
+                ..options()
+            },
+        )
+        .unwrap();
+        let fast = directed(
+            &va,
+            &fa,
+            &tree,
+            &Options {
+                bounds: false,
+                statistics: false,
+                ..options()
+            },
+        )
+        .unwrap();
+        assert_eq!(full.max, fast.max);
+        assert_eq!(full.argmax, fast.argmax);
+        assert_eq!(full.argmax_closest, fast.argmax_closest);
+        assert!(fast.statistics.is_none());
+    }
+}

@@ -1,0 +1,500 @@
+"""Closest points and the sampled Hausdorff distance, against independent references.
+
+The reference is a brute-force point-to-triangle distance written here in numpy (plane
+projection inside the triangle, clamped segment projections outside), checked against
+every triangle of the mesh.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import meshbits
+from meshbits.cli import main
+
+DATA = Path(__file__).parent / "data"
+
+
+# --- reference ---------------------------------------------------------------------------
+
+
+def _segment_d2(p, x, y):
+    d = y - x
+    dd = (d * d).sum(-1)
+    t = np.where(dd > 0, ((p - x) * d).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0).clip(0, 1)
+    q = x + t[..., None] * d
+    return ((p - q) ** 2).sum(-1)
+
+
+def brute_d2(points, vertices, faces):
+    """Squared distance from every point to every triangle, shape (points, faces).
+
+    Per triangle: the plane projection when it falls inside (edge functions against the
+    normal), else the nearest of the three clamped segment projections. Triangles with
+    ``(2 area / L**2)**2 <= 1e-16`` (``L`` the longest edge) count as their edges only,
+    as documented in ``rust/closest.rs``.
+    """
+    p = np.asarray(points, dtype=float)[:, None, :]
+    v = np.asarray(vertices, dtype=float)
+    a, b, c = (v[np.asarray(faces)[:, k]][None] for k in range(3))
+    best = np.minimum(np.minimum(_segment_d2(p, a, b), _segment_d2(p, b, c)), _segment_d2(p, c, a))
+    n = np.cross(b - a, c - a)
+    nn = (n * n).sum(-1)
+    longest2 = np.maximum(
+        np.maximum(((b - a) ** 2).sum(-1), ((c - a) ** 2).sum(-1)), ((c - b) ** 2).sum(-1)
+    )
+    regular = nn > 1e-16 * longest2**2
+    h = ((p - a) * n).sum(-1) / np.where(regular, nn, 1.0)
+    q = p - h[..., None] * n
+    inside = regular
+    for x, y in ((a, b), (b, c), (c, a)):
+        inside = inside & ((np.cross(y - x, q - x) * n).sum(-1) >= 0)
+    return np.where(inside, np.minimum(best, h * h * nn), best)
+
+
+def tolerance(vertices, faces, points):
+    """Absolute tolerance for a distance: rounding grows as ``scale**2 / (2 area)`` on
+    thin triangles (see ``rust/closest.rs``)."""
+    v = np.asarray(vertices, dtype=float)
+    scale = 1.0 + np.abs(v).max() + np.abs(np.asarray(points)).max()
+    a, b, c = (v[np.asarray(faces)[:, k]] for k in range(3))
+    twice_area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    longest = np.sqrt(
+        np.max([((b - a) ** 2).sum(1), ((c - a) ** 2).sum(1), ((c - b) ** 2).sum(1)], axis=0)
+    )
+    regular = twice_area > 1e-8 * longest**2
+    worst = (scale**2 / twice_area[regular]).max() if regular.any() else 1.0
+    return 1e-13 * scale * max(1.0, worst)
+
+
+def brute_distance(points, vertices, faces):
+    return np.sqrt(brute_d2(points, vertices, faces).min(axis=1))
+
+
+def square(n, z=0.0, size=1.0):
+    """A square of side ``size`` in the plane ``z``, split into ``2 n**2`` triangles."""
+    g = np.linspace(0, size, n + 1)
+    x, y = np.meshgrid(g, g)
+    v = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, z)])
+    k = (np.arange(n)[None, :] + (n + 1) * np.arange(n)[:, None]).ravel()
+    f = np.concatenate(
+        [np.column_stack([k, k + 1, k + n + 2]), np.column_stack([k, k + n + 2, k + n + 1])]
+    )
+    return v, f
+
+
+def load(name):
+    return meshbits.load_mesh(DATA / name)
+
+
+def quantize(v, bits):
+    lo = v.min(axis=0)
+    size = (v.max(axis=0) - lo).max()
+    k = 2**bits - 1
+    return lo + np.round((v - lo) * k / size) * size / k
+
+
+# --- strategies --------------------------------------------------------------------------
+
+# Integer grid coordinates make degenerate triangles (repeated vertices, collinear
+# corners) common and exactly degenerate.
+grid_vertices = st.lists(st.tuples(*(st.integers(-3, 3),) * 3), min_size=3, max_size=9).map(
+    lambda rows: np.array(rows, dtype=float) * 0.5
+)
+real_vertices = st.lists(
+    st.tuples(*(st.floats(-2, 2, allow_nan=False, width=32),) * 3), min_size=3, max_size=9
+).map(lambda rows: np.array(rows, dtype=float))
+
+
+@st.composite
+def meshes(draw, vertices=None):
+    v = draw(vertices if vertices is not None else st.one_of(grid_vertices, real_vertices))
+    n = len(v)
+    faces = draw(st.lists(st.tuples(*(st.integers(0, n - 1),) * 3), min_size=1, max_size=10))
+    return v, np.array(faces, dtype=np.int64)
+
+
+@st.composite
+def mesh_and_points(draw):
+    v, f = draw(meshes())
+    pts = [
+        draw(st.tuples(*(st.floats(-4, 4, allow_nan=False),) * 3))
+        for _ in range(draw(st.integers(1, 12)))
+    ]
+    pts = np.array(pts, dtype=float).reshape(-1, 3)
+    # Points exactly on vertices, on edge midpoints, and at centroids.
+    a, b, c = (v[f[:, k]] for k in range(3))
+    extra = np.concatenate([v, (a + b) / 2, (b + c) / 2, (a + b + c) / 3])
+    return v, f, np.concatenate([pts, extra])
+
+
+FAST = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+# --- closest points ----------------------------------------------------------------------
+
+
+@FAST
+@given(mesh_and_points())
+def test_closest_points_match_brute_force(case):
+    v, f, pts = case
+    result = meshbits.ClosestPoints((v, f)).query(pts)
+    reference = brute_distance(pts, v, f)
+    atol = tolerance(v, f, pts)
+    np.testing.assert_allclose(result.distances, reference, rtol=0, atol=atol)
+    # The closest point is at that distance, and lies on the reported face.
+    np.testing.assert_allclose(
+        np.linalg.norm(pts - result.points, axis=1), result.distances, atol=atol
+    )
+    on_face = np.array(
+        [
+            math.sqrt(brute_d2(q[None], v, f[[k]])[0, 0])
+            for q, k in zip(result.points, result.faces, strict=True)
+        ]
+    )
+    assert on_face.max() <= atol
+    assert result.distances.dtype == np.float64 and result.faces.dtype == np.int64
+
+
+def test_points_on_vertices_and_edges_are_at_distance_zero():
+    v, f = square(3)
+    cp = meshbits.ClosestPoints((v, f))
+    a, b = v[f[:, 0]], v[f[:, 1]]
+    pts = np.concatenate([v, (a + b) / 2])
+    assert cp.query(pts).distances.max() <= 1e-15
+
+
+def test_ties_go_to_the_smallest_face_index():
+    v, f = square(1)
+    doubled = np.concatenate([f[::-1], f])  # every triangle twice
+    result = meshbits.ClosestPoints((v, doubled)).query([[0.9, 0.2, 1.0], [0.1, 0.8, -1.0]])
+    assert result.faces.tolist() == [1, 0]  # triangle (0, 1, 3) is faces 1 and 2
+
+
+def test_tree_validates_on_real_meshes():
+    for name in ("bunny_res4.ply", "suzanne.ply", "fandisk.ply"):
+        cp = meshbits.ClosestPoints(load(name))
+        cp.validate()
+        assert cp.n_faces == len(load(name)[1])
+    for n in range(1, 40):
+        v, f = square(1)
+        cp = meshbits.ClosestPoints((v, np.resize(f, (n, 3))))
+        cp.validate()
+
+
+def test_closest_points_query_accepts_trimesh_and_empty_queries():
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    cp = meshbits.ClosestPoints(mesh)
+    assert cp.query(np.zeros((0, 3))).distances.shape == (0,)
+    far = cp.query([[0.0, 0.0, 5.0]])
+    assert far.distances[0] == pytest.approx(4.0, abs=1e-15)  # (0, 0, 1) is a vertex
+    assert "ClosestPoints(320 faces" in repr(cp)
+
+
+# --- sampling ----------------------------------------------------------------------------
+
+
+def test_surface_samples_skip_unreferenced_vertices_and_lie_on_faces():
+    v, f = square(2)
+    v = np.concatenate([v, [[50.0, 50.0, 50.0]]])  # unreferenced
+    s = meshbits.surface_samples((v, f), samples=500, seed=3)
+    assert s.n_vertex_samples == 9
+    assert len(s.points) == 509
+    assert (s.faces[:9] == -1).all() and (s.faces[9:] >= 0).all()
+    assert np.abs(s.points[:, 2]).max() == 0.0
+    assert s.points[:, :2].min() >= 0.0 and s.points[:, :2].max() <= 1.0
+    # Each area sample lies on its own face.
+    d = np.sqrt(brute_d2(s.points[9:], v, f)[np.arange(500), s.faces[9:]])
+    assert d.max() <= 1e-15
+    # Counts follow area: every face has the same area here.
+    assert set(np.bincount(s.faces[9:], minlength=8).tolist()) <= {62, 63}
+
+
+def test_surface_samples_are_seeded_and_thread_independent():
+    mesh = load("bunny_res3.ply")
+    with meshbits.threads(1):
+        one = meshbits.surface_samples(mesh, samples=20_000, seed=5)
+    with meshbits.threads(2):
+        two = meshbits.surface_samples(mesh, samples=20_000, seed=5)
+    other = meshbits.surface_samples(mesh, samples=20_000, seed=6)
+    assert np.array_equal(one.points, two.points) and np.array_equal(one.faces, two.faces)
+    assert not np.array_equal(one.points, other.points)
+    assert meshbits.surface_samples(mesh).points.shape[0] == 1887 + 38_510
+
+
+# --- hausdorff: brute force --------------------------------------------------------------
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(meshes(), meshes(), st.integers(0, 2**64 - 1))
+def test_hausdorff_samples_match_brute_force(a, b, seed):
+    r = meshbits.hausdorff(a, b, samples=40, seed=seed, bounds=True, return_samples=True)
+    for d, (src, dst) in ((r.a_to_b, (a, b)), (r.b_to_a, (b, a))):
+        ref = brute_distance(d.samples, *dst)
+        atol = tolerance(*dst, d.samples)
+        np.testing.assert_allclose(d.distances, ref, rtol=0, atol=atol)
+        assert d.max == d.distances.max()
+        assert np.array_equal(d.argmax, d.samples[np.argmax(d.distances)])
+        assert abs(np.linalg.norm(d.argmax - d.argmax_closest) - d.max) <= atol
+        np.testing.assert_allclose(d.mean, ref.mean(), rtol=1e-12, atol=atol)
+        np.testing.assert_allclose(d.rms, np.sqrt((ref**2).mean()), rtol=1e-12, atol=atol)
+        for q in (50, 95, 99):
+            np.testing.assert_allclose(
+                getattr(d, f"p{q}"), np.percentile(d.distances, q), rtol=1e-14
+            )
+        # Referenced vertices only, with their exact distances.
+        used = np.unique(src[1])
+        assert d.n_vertex_samples == len(used)
+        np.testing.assert_allclose(
+            d.vertex_distances[used], brute_distance(src[0][used], *dst), atol=atol
+        )
+        assert np.isnan(np.delete(d.vertex_distances, used)).all()
+        # The bound holds on a denser, independent sample of the source.
+        dense = meshbits.surface_samples(src, samples=3000, seed=seed ^ 1).points
+        assert brute_distance(dense, *dst).max() <= d.upper + atol
+    assert r.distance == max(r.a_to_b.max, r.b_to_a.max)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(meshes(), meshes())
+def test_refinement_reaches_the_tolerance_on_random_meshes(a, b):
+    scale = max(np.ptp(a[0], axis=0).max(), np.ptp(b[0], axis=0).max(), 1e-3)
+    tol = 1e-3 * scale
+    r = meshbits.hausdorff(a, b, samples=20, tolerance=tol, statistics=False)
+    for d, (src, dst) in ((r.a_to_b, (a, b)), (r.b_to_a, (b, a))):
+        assert d.converged is True
+        assert d.max <= d.upper <= d.max + tol
+        dense = meshbits.surface_samples(src, samples=3000, seed=9).points
+        assert brute_distance(dense, *dst).max() <= d.upper + 1e-12 * (1 + scale)
+    assert r.upper - r.distance <= tol
+
+
+def test_max_only_gives_the_same_maximum_and_bound():
+    a, b = load("bunny_res4.ply"), load("bunny_res3.ply")
+    full = meshbits.hausdorff(a, b, samples=30_000, bounds=True)
+    fast = meshbits.hausdorff(a, b, samples=30_000, bounds=True, statistics=False)
+    for x, y in ((full.a_to_b, fast.a_to_b), (full.b_to_a, fast.b_to_a)):
+        assert x.max == y.max and x.upper == y.upper
+        assert np.array_equal(x.argmax, y.argmax) and np.array_equal(
+            x.argmax_closest, y.argmax_closest
+        )
+        assert x.mean is not None and y.mean is None and y.p99 is None
+    assert full.upper == fast.upper and full.distance == fast.distance
+
+
+# --- hausdorff: analytic cases -----------------------------------------------------------
+
+
+def test_mesh_against_itself_is_zero():
+    mesh = load("bunny_res3.ply")
+    size = np.ptp(mesh[0], axis=0).max()
+    r = meshbits.hausdorff(mesh, mesh, tolerance=1e-4 * size)
+    assert r.distance <= 1e-12 * size
+    assert r.upper <= 1e-4 * size + 1e-12 * size
+    assert r.a_to_b.mean <= 1e-14 * size
+
+
+def test_translate_along_the_normal_of_a_flat_patch():
+    v, f = square(6)
+    t = 0.37
+    r = meshbits.hausdorff((v, f), (v + np.array([0, 0, t]), f), bounds=True, tolerance=1e-9)
+    assert abs(r.distance - t) <= 1e-14
+    assert r.a_to_b.upper - t <= 1e-9 and r.a_to_b.converged
+    for d in (r.a_to_b, r.b_to_a):
+        assert d.p50 == pytest.approx(t, abs=1e-14) and d.rms == pytest.approx(t, abs=1e-14)
+
+
+def test_parallel_unit_squares_at_distance_d():
+    d = 0.25
+    a, b = square(5), square(8, z=d)
+    r = meshbits.hausdorff(a, b, tolerance=1e-6)
+    assert abs(r.distance - d) <= 1e-14
+    assert r.distance <= r.upper <= d + 1e-6
+    assert r.a_to_b.converged and r.b_to_a.converged
+
+
+def test_bump_lower_true_upper():
+    # Flat unit square A against B, the same square with its centre vertex raised by 0.2.
+    a = square(2)
+    bv, bf = square(2)
+    bv = bv.copy()
+    bv[4, 2] = 0.2
+    # The centre of A is nearest to the faces through the line x - y = +-0.5 and the apex:
+    # normal (0.2, -0.2, 0.5), offset 0.1.
+    at_centre = 0.1 / math.sqrt(0.33)
+    # A dense grid on A bounds h(A, B) from below, and from above within its spacing.
+    g = np.linspace(0, 1, 301)
+    grid = np.column_stack([np.repeat(g, g.size), np.tile(g, g.size), np.zeros(g.size**2)])
+    dense = brute_distance(grid, bv, bf).max()
+    assert dense == pytest.approx(at_centre, abs=1e-15)
+    truth_low, truth_high = dense, dense + (g[1] - g[0]) / math.sqrt(2)
+    r = meshbits.hausdorff(a, (bv, bf), samples=200, bounds=True)
+    assert r.a_to_b.max <= truth_high and truth_low <= r.a_to_b.upper
+    assert r.b_to_a.max == pytest.approx(0.2, abs=1e-15)  # the apex is a vertex sample
+    assert r.b_to_a.upper >= 0.2
+    refined = meshbits.hausdorff(a, (bv, bf), samples=200, tolerance=1e-7)
+    d = refined.a_to_b
+    assert d.max <= truth_high and truth_low <= d.upper <= d.max + 1e-7
+    assert d.converged and r.a_to_b.upper - r.a_to_b.max > 1e-3
+
+
+def test_icosphere_against_a_fine_sphere_approaches_the_sagitta():
+    coarse = trimesh.creation.icosphere(subdivisions=2)
+    fine = trimesh.creation.icosphere(subdivisions=6)
+
+    def sagitta(mesh):  # 1 - distance from the centre to the farthest-in face plane
+        n = mesh.face_normals
+        return 1.0 - np.abs((n * mesh.vertices[mesh.faces[:, 0]]).sum(1)).min()
+
+    s, s_fine = sagitta(coarse), sagitta(fine)
+    r = meshbits.hausdorff(coarse, fine, samples=200_000, statistics=False, tolerance=1e-6)
+    # Points of the fine sphere stand at most s_fine below the true sphere.
+    assert s - s_fine - 1e-6 <= r.distance <= r.upper <= s + 1e-6
+    assert abs(r.distance - s) <= 2 * s_fine
+
+
+def test_refine_budget_stops_and_reports():
+    a, b = load("bunny_res4.ply"), load("bunny_res3.ply")
+    r = meshbits.hausdorff(a, b, samples=1000, tolerance=1e-9, refine_budget=3000, statistics=False)
+    assert r.a_to_b.converged is False or r.b_to_a.converged is False
+    for d in (r.a_to_b, r.b_to_a):
+        assert d.refined_points <= 3000 and d.upper >= d.max
+
+
+# --- determinism and frames --------------------------------------------------------------
+
+
+@pytest.mark.parametrize("statistics", [True, False])
+def test_bit_identical_on_one_and_two_threads(statistics):
+    a, b = load("bunny_res3.ply"), load("bunny.ply")
+    kw = dict(samples=50_000, seed=11, statistics=statistics, tolerance=2e-5)
+    with meshbits.threads(1):
+        one = meshbits.hausdorff(a, b, return_samples=statistics, **kw)
+    with meshbits.threads(2):
+        two = meshbits.hausdorff(a, b, return_samples=statistics, **kw)
+    assert json.dumps(one.to_dict()) == json.dumps(two.to_dict())
+    if statistics:
+        for x, y in ((one.a_to_b, two.a_to_b), (one.b_to_a, two.b_to_a)):
+            assert np.array_equal(x.distances, y.distances)
+            assert np.array_equal(x.vertex_distances, y.vertex_distances, equal_nan=True)
+    pts = meshbits.surface_samples(a, seed=1).points
+    with meshbits.threads(1):
+        q1 = meshbits.ClosestPoints(b).query(pts)
+    with meshbits.threads(2):
+        q2 = meshbits.ClosestPoints(b).query(pts)
+    assert np.array_equal(q1.distances, q2.distances) and np.array_equal(q1.faces, q2.faces)
+    assert np.array_equal(q1.points, q2.points)
+
+
+def test_far_from_the_origin():
+    # Coordinates on a 2**-30 grid stay exact when 1e6 is added.
+    a, b = load("bunny_res4.ply"), load("bunny_res3.ply")
+    a = (np.round(a[0] * 2**30) / 2**30, a[1])
+    b = (np.round(b[0] * 2**30) / 2**30, b[1])
+    near = meshbits.hausdorff(a, b, samples=20_000, tolerance=1e-5)
+    far = meshbits.hausdorff((a[0] + 1e6, a[1]), (b[0] + 1e6, b[1]), samples=20_000, tolerance=1e-5)
+    for x, y in ((near.a_to_b, far.a_to_b), (near.b_to_a, far.b_to_a)):
+        for name in ("max", "mean", "rms", "p50", "p95", "p99", "upper"):
+            assert getattr(y, name) == pytest.approx(getattr(x, name), rel=1e-9), name
+        np.testing.assert_allclose(y.argmax - 1e6, x.argmax, atol=1e-9)
+    pts = meshbits.surface_samples(a, seed=2).points
+    d0 = meshbits.ClosestPoints(b).query(pts).distances
+    d1 = meshbits.ClosestPoints((b[0] + 1e6, b[1])).query(pts + 1e6).distances
+    np.testing.assert_allclose(d1, d0, rtol=1e-9, atol=1e-9 * np.ptp(b[0]))
+
+
+# --- peers (optional) --------------------------------------------------------------------
+
+
+def _bunny_pair():
+    v, f = load("bunny.ply")
+    return (v, f), (quantize(v, 10), f)
+
+
+def test_agrees_with_libigl():
+    igl = pytest.importorskip("igl")
+    a, b = _bunny_pair()
+    r = meshbits.hausdorff(a, b, samples=100_000, return_samples=True)
+    d2, _, _ = igl.point_mesh_squared_distance(r.a_to_b.samples, b[0], b[1].astype(np.int64))
+    assert np.sqrt(d2).max() == pytest.approx(r.a_to_b.max, rel=1e-6)
+    np.testing.assert_allclose(np.sqrt(d2), r.a_to_b.distances, rtol=1e-6, atol=1e-12)
+
+
+def test_agrees_with_open3d():
+    o3d = pytest.importorskip("open3d")
+    a, b = _bunny_pair()
+    r = meshbits.hausdorff(a, b, samples=100_000, return_samples=True)
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(b[0].astype(np.float32)), o3d.core.Tensor(b[1].astype(np.uint32))
+    )
+    d = scene.compute_distance(o3d.core.Tensor(r.a_to_b.samples.astype(np.float32))).numpy()
+    # Open3D works in float32: agree to its precision (coordinates of size 0.2).
+    assert abs(float(d.max()) - r.a_to_b.max) <= 1e-6 * np.ptp(b[0])
+
+
+# --- bad input ---------------------------------------------------------------------------
+
+
+def test_bad_input_is_refused_clearly():
+    v, f = square(1)
+    with pytest.raises(ValueError, match="faces has no rows"):
+        meshbits.hausdorff((v, np.zeros((0, 3), int)), (v, f))
+    with pytest.raises(ValueError, match="not finite"):
+        meshbits.ClosestPoints((np.where(v == 1, np.nan, v), f))
+    with pytest.raises(ValueError, match="out of range"):
+        meshbits.hausdorff((v, f), (v, f + 1))
+    with pytest.raises(ValueError, match="tolerance must be positive"):
+        meshbits.hausdorff((v, f), (v, f), tolerance=0.0)
+    with pytest.raises(ValueError, match="tolerance must be positive"):
+        meshbits.hausdorff((v, f), (v, f), tolerance=float("nan"))
+    with pytest.raises(ValueError, match="samples must be non-negative"):
+        meshbits.hausdorff((v, f), (v, f), samples=-1)
+    with pytest.raises(TypeError, match="seed must be an integer"):
+        meshbits.hausdorff((v, f), (v, f), seed=1.5)
+    with pytest.raises(ValueError, match="seed must be in"):
+        meshbits.hausdorff((v, f), (v, f), seed=-1)
+    with pytest.raises(TypeError, match="expected a trimesh"):
+        meshbits.hausdorff("mesh.ply", (v, f))
+    cp = meshbits.ClosestPoints((v, f))
+    with pytest.raises(ValueError, match=r"shape \(n, 3\)"):
+        cp.query(np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="not finite"):
+        cp.query([[0.0, np.inf, 0.0]])
+    with pytest.raises(TypeError, match="real numbers"):
+        cp.query([["a", "b", "c"]])
+
+
+def test_zero_area_mesh_samples_vertices_and_bounds_its_edges():
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    a = (v, [[0, 1, 2]])  # a segment from 0 to 2
+    b = (np.array([[0.0, 0, 0], [0, 1, 0], [0, 0, 1]]), [[0, 1, 2]])  # a triangle at x = 0
+    r = meshbits.hausdorff(a, b, samples=100, tolerance=1e-6)
+    assert r.a_to_b.n_samples == 3  # no area: only the vertices
+    assert r.a_to_b.max == 2.0 and r.a_to_b.upper <= 2.0 + 1e-6
+
+
+# --- CLI ---------------------------------------------------------------------------------
+
+
+def test_cli_json_and_table(capsys):
+    a, b = str(DATA / "bunny_res4.ply"), str(DATA / "bunny_res3.ply")
+    assert main(["hausdorff", a, b, "--samples", "5000", "--seed", "3", "--json", "--quiet"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    ref = meshbits.hausdorff(load("bunny_res4.ply"), load("bunny_res3.ply"), samples=5000, seed=3)
+    assert out["distance"] == ref.distance and out["a_to_b"]["p95"] == ref.a_to_b.p95
+    assert main(["hausdorff", a, b, "--samples", "2000", "--tolerance", "1e-5", "--max-only"]) == 0
+    captured = capsys.readouterr()
+    assert "certified upper bound" in captured.out and "mean" not in captured.out
+    assert "building the BVH" in captured.err
+    assert main(["hausdorff", a, str(DATA / "missing.ply")]) == 2
+    assert "no such mesh file" in capsys.readouterr().err
+    assert main(["hausdorff", a, b, "--tolerance", "-1", "--quiet"]) == 2
