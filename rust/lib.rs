@@ -5,10 +5,13 @@
 //! table ([`adjacency`]). Kernels take plain slices (`&[[f64; 3]]` vertices,
 //! `&[[u32; 3]]` faces), return `Result<_, MeshError>` and never panic on user data; the
 //! only file that knows Python is [`python`].
+//!
+//! Grid quantization to B bits and vertex clustering: [`quantize`].
 
 pub mod adjacency;
 pub mod complexity;
 pub mod error;
 mod python;
+pub mod quantize;
 
 pub use error::MeshError;

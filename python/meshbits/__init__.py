@@ -13,17 +13,23 @@ from . import _core
 from ._core import MeshbitsError
 from .complexity import ShapeComplexity, shape_complexity
 from .io import example_mesh_path, load_mesh, save_mesh
+from .quantize import Clustered, Quantized, cluster, dequantize, quantize
 from .threads import get_num_threads, set_num_threads, threads
 
 __version__: str = _core.__version__
 
 __all__ = [
+    "Clustered",
     "MeshbitsError",
+    "Quantized",
     "ShapeComplexity",
     "__version__",
+    "cluster",
+    "dequantize",
     "example_mesh_path",
     "get_num_threads",
     "load_mesh",
+    "quantize",
     "save_mesh",
     "set_num_threads",
     "shape_complexity",
