@@ -334,27 +334,24 @@ fn cluster<'py>(
     let kind = parse_grid(grid)?;
     let duplicates = parse_duplicates(duplicates)?;
     let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
-    let (grid, c, codes, out_faces, face_index) = run_detached(py, || {
+    let (grid, mut c, codes) = run_detached(py, || {
         let grid = make_grid(v, bits, kind, box_min, box_max)?;
         let mut c = cluster_kernel(v, f, &grid, duplicates)?;
         let codes = Codes::new(std::mem::take(&mut c.codes), &grid, centered);
-        let out_faces: Vec<i64> = std::mem::take(&mut c.faces)
-            .into_flattened()
-            .par_iter()
-            .map(|&i| i64::from(i))
-            .collect();
-        let face_index: Vec<i64> = std::mem::take(&mut c.face_index)
-            .par_iter()
-            .map(|&i| i64::from(i))
-            .collect();
-        Ok((grid, c, codes, out_faces, face_index))
+        Ok((grid, c, codes))
     })?;
     let out = PyDict::new(py);
     out.set_item("vertices", rows(py, c.vertices.into_flattened())?)?;
-    out.set_item("faces", rows(py, out_faces)?)?;
+    out.set_item(
+        "faces",
+        rows(py, std::mem::take(&mut c.faces).into_flattened())?,
+    )?;
     out.set_item("codes", codes.into_py(py)?)?;
     out.set_item("vertex_map", c.vertex_map.into_pyarray(py))?;
-    out.set_item("face_index", face_index.into_pyarray(py))?;
+    out.set_item(
+        "face_index",
+        std::mem::take(&mut c.face_index).into_pyarray(py),
+    )?;
     out.set_item("merged_vertices", c.merged_vertices)?;
     out.set_item("unreferenced_vertices", c.unreferenced_vertices)?;
     out.set_item("degenerate_faces", c.degenerate_faces)?;

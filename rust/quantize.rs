@@ -29,6 +29,9 @@
 //! see [`Duplicates`]). Vertices that no kept face uses are dropped (unreferenced).
 //! Output order, independent of the thread count: new vertices in order of the smallest
 //! input index of their cluster; kept faces in input order.
+//!
+//! Vertices are grouped by a stable LSD radix sort of their packed codes (O(n B), no
+//! hashing); a pass in vertex order numbers the groups by their smallest vertex index.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -39,11 +42,21 @@ use crate::error::{MeshError, check_finite, check_indices};
 /// Largest supported bits per coordinate: codes are `u32`.
 pub const MAX_BITS: u32 = 32;
 
-/// Digit width of the LSD radix sort of codes, in bits (4096 counters stay in L1).
+/// Digit width of the LSD radix sort of codes, in bits.
 const RADIX_BITS: u32 = 12;
 
-/// Keys per parallel work unit when counting digits.
-const COUNT_CHUNK: usize = 1 << 16;
+/// Points or keys per parallel work unit (bounding box, digit counts).
+const CHUNK: usize = 1 << 16;
+
+/// Smallest number of items per rayon task in element-wise passes.
+const MIN_LEN: usize = 1 << 12;
+
+/// Faces per parallel work unit in the face pass of [`cluster`].
+const FACE_CHUNK: usize = 1 << 14;
+
+/// Marks a dropped face in the first corner of its remapped triple (vertex counts are
+/// below `u32::MAX`, so no vertex has this index).
+const DROPPED: u32 = u32::MAX;
 
 /// How the step is chosen from the box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -101,12 +114,18 @@ pub fn max_code(bits: u32) -> u32 {
 
 /// One coordinate's code: `round((x - min) / step)`, halves up, clamped to `[0, top]`;
 /// 0 when the step is 0.
+///
+/// `y = (x - min) / step` is `>= 0` inside the box and at most about `2^32`, so
+/// `t = trunc(y)` is `floor(y)` and `y - t` is exact: `t + (y - t >= 0.5)` rounds halves
+/// up exactly, without a libm call (`f64::round` is one on baseline x86-64).
 #[inline]
 #[must_use]
-fn axis_code(x: f64, min: f64, step: f64, top: f64) -> u32 {
+fn axis_code(x: f64, min: f64, step: f64, top: u32) -> u32 {
     if step > 0.0 {
-        // `round` takes halves away from zero; the argument is >= 0 inside the box.
-        ((x - min) / step).round().clamp(0.0, top) as u32
+        let y = (x - min) / step;
+        let t = y as u64; // saturating: a negative y (outside the box) gives 0
+        let q = t + u64::from(y - t as f64 >= 0.5);
+        q.min(u64::from(top)) as u32
     } else {
         0
     }
@@ -144,7 +163,7 @@ impl Grid {
         let largest = side.iter().copied().fold(0.0, f64::max);
         let step = match kind {
             GridKind::Cube => [largest / levels; 3],
-            GridKind::Axes => side.map(|s| s / levels),
+            GridKind::Axes => [side[0] / levels, side[1] / levels, side[2] / levels],
         };
         for a in 0..3 {
             let needed = if kind == GridKind::Cube {
@@ -175,8 +194,12 @@ impl Grid {
                 "no vertices to quantize: the bounding box is undefined".into(),
             ));
         }
-        check_finite(vertices)?;
-        let (min, max) = bounding_box(vertices);
+        let Some((min, max)) = bounding_box(vertices) else {
+            check_finite(vertices)?;
+            return Err(MeshError::Parameter(
+                "a coordinate failed the finite test but passes check_finite".into(),
+            ));
+        };
         Grid::new(bits, kind, min, max)
     }
 
@@ -209,54 +232,112 @@ impl Grid {
         (1u32 << (self.bits - 1)) - 1
     }
 
-    /// True when `p` lies in the closed box.
+    /// True when `p` lies in the closed box (false for NaN).
     #[inline]
     #[must_use]
     pub fn contains(&self, p: &[f64; 3]) -> bool {
-        (0..3).all(|a| self.min[a] <= p[a] && p[a] <= self.max[a])
+        let (lo, hi) = (&self.min, &self.max);
+        // Non-short-circuit `&`: branch-free.
+        (lo[0] <= p[0])
+            & (p[0] <= hi[0])
+            & (lo[1] <= p[1])
+            & (p[1] <= hi[1])
+            & (lo[2] <= p[2])
+            & (p[2] <= hi[2])
     }
 
     /// Corner code of a point of the box.
     #[inline]
     #[must_use]
     pub fn code(&self, p: &[f64; 3]) -> [u32; 3] {
-        let top = f64::from(self.max_code());
-        [0, 1, 2].map(|a| axis_code(p[a], self.min[a], self.step[a], top))
+        let (top, m, s) = (self.max_code(), &self.min, &self.step);
+        [
+            axis_code(p[0], m[0], s[0], top),
+            axis_code(p[1], m[1], s[1], top),
+            axis_code(p[2], m[2], s[2], top),
+        ]
     }
 
     /// Dequantised position `min + q * step` of a corner code (length).
     #[inline]
     #[must_use]
     pub fn position(&self, q: &[u32; 3]) -> [f64; 3] {
-        [0, 1, 2].map(|a| self.min[a] + f64::from(q[a]) * self.step[a])
+        let (m, s) = (&self.min, &self.step);
+        [
+            m[0] + f64::from(q[0]) * s[0],
+            m[1] + f64::from(q[1]) * s[1],
+            m[2] + f64::from(q[2]) * s[2],
+        ]
     }
 
     /// Refuses the first point (by index) outside the box.
     pub fn check_inside(&self, points: &[[f64; 3]]) -> Result<(), MeshError> {
-        match points.par_iter().position_first(|p| !self.contains(p)) {
+        match points.iter().position(|p| !self.contains(p)) {
             Some(point) => Err(MeshError::OutsideBox { point }),
             None => Ok(()),
         }
     }
+
+    /// Corner codes of `points`; refuses NaN/infinite coordinates, then points outside
+    /// the box, naming the first offending point.
+    pub fn codes(&self, points: &[[f64; 3]]) -> Result<Vec<[u32; 3]>, MeshError> {
+        let outside = AtomicBool::new(false);
+        let codes: Vec<[u32; 3]> = points
+            .par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|p| {
+                if !self.contains(p) {
+                    outside.store(true, Ordering::Relaxed);
+                }
+                self.code(p)
+            })
+            .collect();
+        if outside.into_inner() {
+            return Err(self.refusal(points));
+        }
+        Ok(codes)
+    }
+
+    /// The error for points that failed [`Grid::contains`]: the first non-finite
+    /// coordinate, else the first point outside the box.
+    fn refusal(&self, points: &[[f64; 3]]) -> MeshError {
+        match check_finite(points).and_then(|()| self.check_inside(points)) {
+            Err(e) => e,
+            Ok(()) => {
+                MeshError::Parameter("a point failed the box test but passes both checks".into())
+            }
+        }
+    }
 }
 
-/// Axis-aligned bounding box of non-empty, finite points.
+/// Axis-aligned bounding box of non-empty points, or `None` when a coordinate is NaN or
+/// infinite. Min and max are exact, so the result does not depend on the thread count.
 #[must_use]
-pub fn bounding_box(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
-    let lo_hi = |(lo, hi): ([f64; 3], [f64; 3]), p: &[f64; 3]| {
-        (
-            [0, 1, 2].map(|a| lo[a].min(p[a])),
-            [0, 1, 2].map(|a| hi[a].max(p[a])),
-        )
-    };
-    let empty = || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    points
-        .par_iter()
-        .fold(empty, lo_hi)
-        .reduce(empty, |x, (lo, hi)| {
-            let x = lo_hi(x, &lo);
-            lo_hi(x, &hi)
+pub fn bounding_box(points: &[[f64; 3]]) -> Option<([f64; 3], [f64; 3])> {
+    type Acc = ([f64; 3], [f64; 3], bool);
+    fn grow(mut acc: Acc, lo: &[f64; 3], hi: &[f64; 3], finite: bool) -> Acc {
+        for a in 0..3 {
+            if lo[a] < acc.0[a] {
+                acc.0[a] = lo[a];
+            }
+            if hi[a] > acc.1[a] {
+                acc.1[a] = hi[a];
+            }
+        }
+        acc.2 &= finite;
+        acc
+    }
+    let empty = || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], true);
+    let (lo, hi, finite) = points
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            chunk.iter().fold(empty(), |acc, p| {
+                let finite = p[0].is_finite() & p[1].is_finite() & p[2].is_finite();
+                grow(acc, p, p, finite)
+            })
         })
+        .reduce(empty, |acc, (lo, hi, finite)| grow(acc, &lo, &hi, finite));
+    finite.then_some((lo, hi))
 }
 
 /// Euclidean distance between two points (length).
@@ -281,19 +362,17 @@ pub struct Quantized {
 /// Quantizes `points` on `grid`; refuses NaN/infinite coordinates and points outside
 /// the grid's box (naming the first one).
 pub fn quantize(points: &[[f64; 3]], grid: &Grid) -> Result<Quantized, MeshError> {
-    check_finite(points)?;
-    grid.check_inside(points)?;
-    let mut codes = vec![[0u32; 3]; points.len()];
-    let mut positions = vec![[0f64; 3]; points.len()];
-    let max_displacement = codes
-        .par_iter_mut()
-        .zip(positions.par_iter_mut())
-        .zip(points.par_iter())
-        .map(|((q, x), p)| {
-            *q = grid.code(p);
-            *x = grid.position(q);
-            distance(x, p)
-        })
+    let codes = grid.codes(points)?;
+    let positions: Vec<[f64; 3]> = codes
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .map(|q| grid.position(q))
+        .collect();
+    let max_displacement = points
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .zip(&positions)
+        .map(|(p, x)| distance(p, x))
         .reduce(|| 0.0, f64::max);
     Ok(Quantized {
         codes,
@@ -318,11 +397,18 @@ pub fn dequantize(
     }
     let positions: Vec<[f64; 3]> = codes
         .par_iter()
-        .map(|q| [0, 1, 2].map(|a| origin[a] + q[a] as f64 * step[a]))
+        .with_min_len(MIN_LEN)
+        .map(|q| {
+            [
+                origin[0] + q[0] as f64 * step[0],
+                origin[1] + q[1] as f64 * step[1],
+                origin[2] + q[2] as f64 * step[2],
+            ]
+        })
         .collect();
     match positions
-        .par_iter()
-        .position_first(|x| !x.iter().all(|c| c.is_finite()))
+        .iter()
+        .position(|x| !x.iter().all(|c| c.is_finite()))
     {
         Some(i) => Err(MeshError::Parameter(format!(
             "code {i} = {:?} dequantizes beyond the float64 range",
@@ -332,37 +418,56 @@ pub fn dequantize(
     }
 }
 
-/// A key the LSD radix sort can split into digits.
-trait RadixKey: Copy + Default + Eq + Send + Sync {
+/// Three codes of `bits` bits packed into one integer, `x` most significant, so that
+/// integer order is the lexicographic order of codes; the LSD radix sort splits it into
+/// digits.
+trait PackedCode: Copy + Default + Eq + Send + Sync {
     /// `(self >> shift) & mask`.
     fn digit(self, shift: u32, mask: u32) -> usize;
+    /// `x << 2B | y << B | z`.
+    fn pack(q: [u32; 3], bits: u32) -> Self;
+    /// Inverse of [`PackedCode::pack`].
+    fn unpack(self, bits: u32) -> [u32; 3];
 }
 
-impl RadixKey for u64 {
-    #[inline]
-    fn digit(self, shift: u32, mask: u32) -> usize {
-        ((self >> shift) as u32 & mask) as usize
-    }
+macro_rules! packed_code {
+    ($t:ty) => {
+        impl PackedCode for $t {
+            #[inline]
+            fn digit(self, shift: u32, mask: u32) -> usize {
+                ((self >> shift) as u32 & mask) as usize
+            }
+            #[inline]
+            fn pack(q: [u32; 3], bits: u32) -> Self {
+                (<$t>::from(q[0]) << (2 * bits)) | (<$t>::from(q[1]) << bits) | <$t>::from(q[2])
+            }
+            #[inline]
+            fn unpack(self, bits: u32) -> [u32; 3] {
+                let mask = ((1 as $t) << bits) - 1;
+                [
+                    (self >> (2 * bits)) as u32,
+                    ((self >> bits) & mask) as u32,
+                    (self & mask) as u32,
+                ]
+            }
+        }
+    };
 }
-
-impl RadixKey for u128 {
-    #[inline]
-    fn digit(self, shift: u32, mask: u32) -> usize {
-        ((self >> shift) as u32 & mask) as usize
-    }
-}
+packed_code!(u32);
+packed_code!(u64);
+packed_code!(u128);
 
 /// Stable LSD radix sort of `keys` (`key_bits` significant bits); returns the sorted keys
 /// and, for each, its index in the input. Equal keys keep ascending input indices.
 /// O(n * key_bits / 12); passes in which every key has the same digit are skipped.
-fn radix_sort<K: RadixKey>(keys: Vec<K>, key_bits: u32) -> (Vec<K>, Vec<u32>) {
+fn radix_sort<K: PackedCode>(keys: Vec<K>, key_bits: u32) -> (Vec<K>, Vec<u32>) {
     let n = keys.len();
     let passes = key_bits.div_ceil(RADIX_BITS).max(1);
     let width = key_bits.div_ceil(passes);
     let buckets = 1usize << width;
     let mask = (buckets - 1) as u32;
     let counts = keys
-        .par_chunks(COUNT_CHUNK)
+        .par_chunks(CHUNK)
         .map(|chunk| {
             let mut c = vec![0usize; passes as usize * buckets];
             for &k in chunk {
@@ -410,60 +515,88 @@ fn radix_sort<K: RadixKey>(keys: Vec<K>, key_bits: u32) -> (Vec<K>, Vec<u32>) {
 /// Vertices grouped by equal code.
 #[derive(Debug, Clone)]
 pub struct Clusters {
-    /// `representative[i]`: the smallest index of the vertices sharing vertex `i`'s code.
-    pub representative: Vec<u32>,
-    /// Number of distinct codes.
-    pub count: usize,
+    /// `id[i]`: vertex `i`'s cluster. Clusters are numbered in order of their smallest
+    /// vertex index.
+    pub id: Vec<u32>,
+    /// `first[c]`: the smallest vertex index of cluster `c` (ascending in `c`).
+    pub first: Vec<u32>,
+    /// `code[c]`: the code shared by cluster `c`.
+    pub code: Vec<[u32; 3]>,
 }
 
-/// Writes the first index of each run of equal sorted keys as the representative of
-/// every index in the run.
-fn runs<K: RadixKey>(keys: &[K], index: &[u32]) -> Clusters {
-    let mut representative = vec![0u32; keys.len()];
-    let mut count = 0;
-    let mut first = 0;
-    for (j, (&k, &i)) in keys.iter().zip(index).enumerate() {
-        if j == 0 || k != keys[j - 1] {
-            first = i;
-            count += 1;
+impl Clusters {
+    /// Number of clusters (distinct codes).
+    #[inline]
+    #[must_use]
+    pub fn count(&self) -> usize {
+        self.first.len()
+    }
+}
+
+/// Groups packed codes: a radix sort puts equal keys in runs, in ascending vertex order;
+/// a pass in vertex order then numbers each run when its first vertex is reached.
+fn group_keys<K: PackedCode>(keys: Vec<K>, bits: u32) -> Clusters {
+    let n = keys.len();
+    let (sorted, index) = radix_sort(keys, 3 * bits);
+    let mut run_of = vec![0u32; n];
+    let mut run_first: Vec<u32> = Vec::new();
+    let mut run_key: Vec<K> = Vec::new();
+    for (j, (&k, &i)) in sorted.iter().zip(&index).enumerate() {
+        if j == 0 || k != sorted[j - 1] {
+            run_first.push(i);
+            run_key.push(k);
         }
-        representative[i as usize] = first;
+        run_of[i as usize] = (run_first.len() - 1) as u32;
     }
-    Clusters {
-        representative,
-        count,
-    }
+    drop((sorted, index));
+    // A run's first vertex precedes its others, so its id exists when they are reached.
+    let mut run_id = vec![0u32; run_first.len()];
+    let mut first = Vec::with_capacity(run_first.len());
+    let mut code = Vec::with_capacity(run_first.len());
+    let id: Vec<u32> = run_of
+        .iter()
+        .enumerate()
+        .map(|(i, &r)| {
+            let r = r as usize;
+            if run_first[r] as usize == i {
+                run_id[r] = first.len() as u32;
+                first.push(i as u32);
+                code.push(run_key[r].unpack(bits));
+            }
+            run_id[r]
+        })
+        .collect();
+    Clusters { id, first, code }
 }
 
-/// Groups vertices by code with a radix sort; deterministic and O(n B).
+/// Quantizes `points` on `grid` and groups them by code; refuses like [`Grid::codes`].
+///
+/// The codes are packed into one integer key each and sorted with a stable LSD radix
+/// sort (O(n B), no hashing, no worst case); a pass in vertex order then numbers the runs
+/// of equal keys by their smallest vertex index. Deterministic for any thread count.
+pub fn group_points(points: &[[f64; 3]], grid: &Grid) -> Result<Clusters, MeshError> {
+    Ok(group_codes(&grid.codes(points)?, grid.bits))
+}
+
+/// Groups vertices by code (see [`group_points`]).
 #[must_use]
 pub fn group_codes(codes: &[[u32; 3]], bits: u32) -> Clusters {
     debug_assert!((1..=MAX_BITS).contains(&bits));
-    if 3 * bits <= 64 {
-        let keys: Vec<u64> = codes
-            .par_iter()
-            .map(|q| (u64::from(q[0]) << (2 * bits)) | (u64::from(q[1]) << bits) | u64::from(q[2]))
-            .collect();
-        let (keys, index) = radix_sort(keys, 3 * bits);
-        runs(&keys, &index)
-    } else {
-        let keys: Vec<u128> = codes
-            .par_iter()
-            .map(|q| {
-                (u128::from(q[0]) << (2 * bits)) | (u128::from(q[1]) << bits) | u128::from(q[2])
-            })
-            .collect();
-        let (keys, index) = radix_sort(keys, 3 * bits);
-        runs(&keys, &index)
+    fn packed<K: PackedCode>(codes: &[[u32; 3]], bits: u32) -> Clusters {
+        group_keys(
+            codes
+                .par_iter()
+                .with_min_len(MIN_LEN)
+                .map(|&q| K::pack(q, bits))
+                .collect(),
+            bits,
+        )
     }
-}
-
-/// What happened to one input face.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Fate {
-    Kept,
-    Degenerate,
-    Duplicate,
+    match 3 * bits {
+        0..=32 => packed::<u32>(codes, bits),
+        33..=64 => packed::<u64>(codes, bits),
+        _ => packed::<u128>(codes, bits),
+    }
 }
 
 /// The corners of a face in the canonical order of `mode`: rotated so that the smallest
@@ -488,6 +621,13 @@ fn face_key(f: [u32; 3], mode: Duplicates) -> [u32; 3] {
             [f[m], f[(m + 1) % 3], f[(m + 2) % 3]]
         }
     }
+}
+
+/// True when a triple repeats a corner.
+#[inline]
+#[must_use]
+fn repeats_corner(t: &[u32; 3]) -> bool {
+    (t[0] == t[1]) | (t[1] == t[2]) | (t[2] == t[0])
 }
 
 /// A clustered mesh and what clustering removed.
@@ -517,6 +657,44 @@ pub struct Clustering {
     pub max_displacement: f64,
 }
 
+/// The faces not marked DROPPED and their indices, in order: per-chunk counts give each
+/// chunk its slice of the output, filled in parallel.
+fn compact(mapped: &[[u32; 3]], kept: usize) -> (Vec<[u32; 3]>, Vec<u32>) {
+    let counts: Vec<usize> = mapped
+        .par_chunks(FACE_CHUNK)
+        .map(|c| c.iter().filter(|t| t[0] != DROPPED).count())
+        .collect();
+    debug_assert_eq!(counts.iter().sum::<usize>(), kept);
+    let mut out = vec![[0u32; 3]; kept];
+    let mut index = vec![0u32; kept];
+    let mut parts = Vec::with_capacity(counts.len());
+    let (mut out_rest, mut index_rest) = (&mut out[..], &mut index[..]);
+    for &c in &counts {
+        let (o, o_rest) = out_rest.split_at_mut(c);
+        let (i, i_rest) = index_rest.split_at_mut(c);
+        parts.push((o, i));
+        (out_rest, index_rest) = (o_rest, i_rest);
+    }
+    parts
+        .into_par_iter()
+        .zip(mapped.par_chunks(FACE_CHUNK))
+        .enumerate()
+        .for_each(|(chunk_no, ((o, i), chunk))| {
+            // Write every face at the cursor and advance it only past kept ones: no
+            // unpredictable branch when about half the faces collapse.
+            let base = chunk_no * FACE_CHUNK;
+            let mut k = 0;
+            for (j, t) in chunk.iter().enumerate() {
+                if k < o.len() {
+                    o[k] = *t;
+                    i[k] = (base + j) as u32;
+                }
+                k += usize::from(t[0] != DROPPED);
+            }
+        });
+    (out, index)
+}
+
 /// Rossignac-Borrel vertex clustering on `grid`; see the module docs.
 ///
 /// Refuses an empty mesh, NaN/infinite coordinates, out-of-range indices and vertices
@@ -527,107 +705,141 @@ pub fn cluster(
     grid: &Grid,
     duplicates: Duplicates,
 ) -> Result<Clustering, MeshError> {
-    let n = vertices.len();
-    if n == 0 || faces.is_empty() {
+    let (n, m) = (vertices.len(), faces.len());
+    if n == 0 || m == 0 {
         return Err(MeshError::Empty(format!(
-            "mesh is empty ({n} vertices, {} faces)",
-            faces.len()
+            "mesh is empty ({n} vertices, {m} faces)"
         )));
     }
-    if n >= u32::MAX as usize {
+    if n >= DROPPED as usize || m > u32::MAX as usize {
         return Err(MeshError::Shape(format!(
-            "{n} vertices exceed the supported maximum of 2^32 - 2"
+            "{n} vertices and {m} faces exceed the supported maximum of 2^32 - 2"
         )));
     }
-    if faces.par_iter().any(|f| f.iter().any(|&i| i as usize >= n)) {
+    let clusters = group_points(vertices, grid)?;
+    let id = &clusters.id;
+
+    // Faces on cluster ids, in chunks that also check the indices; a degenerate face
+    // (two equal corners) becomes [DROPPED; 3], branch-free: at low B about half the
+    // faces collapse, in no predictable pattern.
+    let mut mapped = vec![[0u32; 3]; m];
+    let (bad_index, degenerate_faces) = mapped
+        .par_chunks_mut(FACE_CHUNK)
+        .zip(faces.par_chunks(FACE_CHUNK))
+        .map(|(out, chunk)| {
+            let (mut bad, mut degenerate) = (false, 0usize);
+            for (o, f) in out.iter_mut().zip(chunk) {
+                let (Some(&a), Some(&b), Some(&c)) = (
+                    id.get(f[0] as usize),
+                    id.get(f[1] as usize),
+                    id.get(f[2] as usize),
+                ) else {
+                    bad = true;
+                    continue;
+                };
+                let collapsed = repeats_corner(&[a, b, c]);
+                degenerate += usize::from(collapsed);
+                let all_ones = 0u32.wrapping_sub(u32::from(collapsed)); // DROPPED or 0
+                *o = [a | all_ones, b | all_ones, c | all_ones];
+            }
+            (bad, degenerate)
+        })
+        .reduce(|| (false, 0), |x, y| (x.0 | y.0, x.1 + y.1));
+    if bad_index {
         check_indices(faces, n)?;
     }
-    let Quantized { codes, .. } = quantize(vertices, grid)?;
-    let clusters = group_codes(&codes, grid.bits);
-    let rep = &clusters.representative;
-
-    let mut mapped: Vec<[u32; 3]> = faces
-        .par_iter()
-        .map(|f| f.map(|i| rep[i as usize]))
-        .collect();
-    let mut fate: Vec<Fate> = mapped
-        .par_iter()
-        .map(|f| {
-            if f[0] == f[1] || f[1] == f[2] || f[2] == f[0] {
-                Fate::Degenerate
-            } else {
-                Fate::Kept
-            }
-        })
-        .collect();
+    let mut duplicate_faces = 0;
     if duplicates != Duplicates::Keep {
         let mut keyed: Vec<([u32; 3], u32)> = mapped
             .par_iter()
-            .zip(&fate)
             .enumerate()
-            .filter(|(_, (_, fate))| **fate == Fate::Kept)
-            .map(|(i, (f, _))| (face_key(*f, duplicates), i as u32))
+            .filter(|(_, t)| t[0] != DROPPED)
+            .map(|(i, t)| (face_key(*t, duplicates), i as u32))
             .collect();
         // Face indices are unique, so the order is total and the sort deterministic.
         keyed.par_sort_unstable();
         for w in keyed.windows(2) {
             if w[0].0 == w[1].0 {
-                fate[w[1].1 as usize] = Fate::Duplicate;
+                mapped[w[1].1 as usize] = [DROPPED; 3];
+                duplicate_faces += 1;
             }
         }
     }
+    let kept_faces = m - degenerate_faces - duplicate_faces;
+    let (mut out_faces, face_index) = if kept_faces == m {
+        (mapped, (0..m as u32).collect())
+    } else {
+        compact(&mapped, kept_faces)
+    };
 
-    let used: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
-    mapped
-        .par_iter()
-        .zip(&fate)
-        .filter(|(_, fate)| **fate == Fate::Kept)
-        .for_each(|(f, _)| {
-            for &r in f {
-                used[r as usize].store(true, Ordering::Relaxed);
+    // Clusters used by a kept face, then new ids by prefix count: kept clusters keep
+    // their relative order.
+    let used: Vec<AtomicBool> = (0..clusters.count())
+        .map(|_| AtomicBool::new(false))
+        .collect();
+    out_faces.par_iter().with_min_len(MIN_LEN).for_each(|t| {
+        for &c in t {
+            if !used[c as usize].load(Ordering::Relaxed) {
+                used[c as usize].store(true, Ordering::Relaxed);
             }
-        });
-    let mut new_id = vec![u32::MAX; n];
+        }
+    });
+    let mut new_id = vec![DROPPED; clusters.count()];
     let mut kept: Vec<u32> = Vec::new();
-    for i in 0..n {
-        if rep[i] as usize == i && used[i].load(Ordering::Relaxed) {
-            new_id[i] = kept.len() as u32;
-            kept.push(i as u32);
+    for (c, u) in used.iter().enumerate() {
+        if u.load(Ordering::Relaxed) {
+            new_id[c] = kept.len() as u32;
+            kept.push(c as u32);
         }
     }
     drop(used);
+    if kept.len() < clusters.count() {
+        out_faces
+            .par_iter_mut()
+            .with_min_len(MIN_LEN)
+            .for_each(|t| {
+                *t = [
+                    new_id[t[0] as usize],
+                    new_id[t[1] as usize],
+                    new_id[t[2] as usize],
+                ];
+            });
+    }
 
-    let vertex_map: Vec<i64> = rep
+    let vertex_map: Vec<i64> = id
         .par_iter()
-        .map(|&r| match new_id[r as usize] {
-            u32::MAX => -1,
-            id => i64::from(id),
+        .with_min_len(MIN_LEN)
+        .map(|&c| match new_id[c as usize] {
+            DROPPED => -1,
+            k => i64::from(k),
         })
         .collect();
-    mapped
-        .par_iter_mut()
-        .for_each(|f| *f = f.map(|r| new_id[r as usize]));
-    let (out_faces, face_index): (Vec<[u32; 3]>, Vec<u32>) = mapped
+    let out_codes: Vec<[u32; 3]> = kept
         .par_iter()
-        .zip(&fate)
-        .enumerate()
-        .filter(|(_, (_, fate))| **fate == Fate::Kept)
-        .map(|(i, (f, _))| (*f, i as u32))
-        .unzip();
-    let out_codes: Vec<[u32; 3]> = kept.par_iter().map(|&i| codes[i as usize]).collect();
-    let out_vertices: Vec<[f64; 3]> = out_codes.par_iter().map(|q| grid.position(q)).collect();
+        .with_min_len(MIN_LEN)
+        .map(|&c| clusters.code[c as usize])
+        .collect();
+    let out_vertices: Vec<[f64; 3]> = out_codes
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .map(|q| grid.position(q))
+        .collect();
     let max_displacement = vertices
         .par_iter()
+        .with_min_len(MIN_LEN)
         .zip(&vertex_map)
-        .filter(|(_, m)| **m >= 0)
-        .map(|(p, &m)| distance(p, &out_vertices[m as usize]))
+        .map(|(p, &k)| {
+            if k >= 0 {
+                distance(p, &out_vertices[k as usize])
+            } else {
+                0.0
+            }
+        })
         .reduce(|| 0.0, f64::max);
 
-    let degenerate_faces = fate.iter().filter(|f| **f == Fate::Degenerate).count();
-    let duplicate_faces = fate.iter().filter(|f| **f == Fate::Duplicate).count();
     Ok(Clustering {
-        merged_vertices: n - clusters.count,
-        unreferenced_vertices: clusters.count - kept.len(),
+        merged_vertices: n - clusters.count(),
+        unreferenced_vertices: clusters.count() - kept.len(),
         degenerate_faces,
         duplicate_faces,
         max_displacement,
@@ -720,6 +932,39 @@ mod tests {
     }
 
     #[test]
+    fn non_finite_and_outside_points_are_named_not_swallowed() {
+        let nan = [[0.0, 0.0, 0.0], [1.0, 2.0, 3.0], [f64::NAN, 0.0, 0.0]];
+        let inf = [[0.0, 0.0, 0.0], [f64::NEG_INFINITY, 0.0, 0.0]];
+        assert_eq!(
+            Grid::bounding(&nan, 8, GridKind::Cube),
+            Err(MeshError::NonFinite { vertex: 2 })
+        );
+        assert_eq!(
+            Grid::bounding(&inf, 8, GridKind::Axes),
+            Err(MeshError::NonFinite { vertex: 1 })
+        );
+        let g = Grid::new(8, GridKind::Cube, [0.0; 3], [1.0; 3]).unwrap();
+        let faces = [[0, 1, 2]];
+        assert_eq!(
+            cluster(&nan, &faces, &g, Duplicates::Keep).unwrap_err(),
+            MeshError::NonFinite { vertex: 2 }
+        );
+        let outside = [[0.0, 0.0, 0.0], [0.5, 0.5, 0.5], [0.5, 1.5, 0.5]];
+        assert_eq!(
+            cluster(&outside, &faces, &g, Duplicates::Keep).unwrap_err(),
+            MeshError::OutsideBox { point: 2 }
+        );
+        assert!(matches!(
+            cluster(&outside[..2], &faces, &g, Duplicates::Keep),
+            Err(MeshError::IndexOutOfRange {
+                face: 0,
+                index: 2,
+                vertex_count: 2
+            })
+        ));
+    }
+
+    #[test]
     fn thirty_two_bit_codes_are_exact_far_from_the_origin() {
         // Dyadic points 2^30 + k / 2^10: x - min is exact, so the codes do not see the offset.
         let near: Vec<[f64; 3]> = (0..50)
@@ -739,36 +984,49 @@ mod tests {
     }
 
     #[test]
-    fn radix_sort_matches_a_stable_comparison_sort() {
+    fn grouping_matches_a_brute_force_partition() {
         let mut rng = Mix(7);
-        for &(n, bits) in &[
-            (0usize, 5u32),
-            (1, 1),
-            (1000, 3),
-            (5000, 12),
-            (3000, 21),
-            (2000, 32),
-        ] {
+        // Key widths u32 (3B <= 31), u64 (<= 63) and u128; shifted codes share their low
+        // bits, so their keys differ only in high bits.
+        let cases = [
+            (0usize, 5u32, 0u32),
+            (1, 1, 0),
+            (1000, 3, 0),
+            (3000, 10, 4),
+            (5000, 11, 0),
+        ];
+        let more = [
+            (4000, 12, 6),
+            (3000, 21, 15),
+            (3000, 22, 16),
+            (2000, 32, 26),
+            (2000, 32, 0),
+        ];
+        for &(n, bits, shift) in cases.iter().chain(&more) {
             let codes: Vec<[u32; 3]> = (0..n)
-                .map(|_| [0, 1, 2].map(|_| (rng.next() as u32) & max_code(bits) & 0x3f))
+                .map(|_| {
+                    [0, 1, 2].map(|_| (((rng.next() as u32) & 0x3f) << shift) & max_code(bits))
+                })
                 .collect();
-            let clusters = group_codes(&codes, bits);
-            let mut order: Vec<usize> = (0..n).collect();
-            order.sort_by_key(|&i| (codes[i], i));
-            let mut expected = vec![0u32; n];
-            let mut distinct = 0;
-            for (j, &i) in order.iter().enumerate() {
-                if j == 0 || codes[i] != codes[order[j - 1]] {
-                    distinct += 1;
+            // Step 1: the points are their own codes.
+            let top = f64::from(max_code(bits));
+            let grid = Grid::new(bits, GridKind::Cube, [0.0; 3], [top; 3]).unwrap();
+            let points: Vec<[f64; 3]> = codes.iter().map(|q| q.map(f64::from)).collect();
+            let clusters = group_points(&points, &grid).unwrap();
+            let mut firsts: Vec<u32> = Vec::new();
+            for i in 0..n {
+                let first = (0..=i).find(|&k| codes[k] == codes[i]).unwrap() as u32;
+                if first as usize == i {
+                    firsts.push(first);
                 }
-                expected[i] = order
-                    .iter()
-                    .find(|&&k| codes[k] == codes[i])
-                    .map(|&k| k as u32)
-                    .unwrap();
+                let c = clusters.id[i] as usize;
+                assert_eq!(clusters.first[c], first, "n={n} bits={bits} i={i}");
+                assert_eq!(clusters.code[c], codes[i]);
             }
-            assert_eq!(clusters.representative, expected, "n={n} bits={bits}");
-            assert_eq!(clusters.count, distinct);
+            assert_eq!(
+                clusters.first, firsts,
+                "clusters must be numbered by first vertex"
+            );
         }
     }
 

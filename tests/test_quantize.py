@@ -568,6 +568,32 @@ def test_cluster_refuses_bad_input(args, kwargs, error, match):
         meshbits.cluster(*args, **kwargs)
 
 
+def test_native_functions_refuse_bad_input_without_panicking():
+    # Straight to the kernels, past the Python checks.
+    from meshbits import _core
+
+    good = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    nan = good.copy()
+    nan[1, 2] = np.nan
+    faces = np.array([[0, 1, 2]], dtype=np.uint32)
+    with pytest.raises(meshbits.MeshbitsError, match="vertex 1 has a NaN"):
+        _core.cluster(nan, faces, 8, "cube", None, None, False, "keep")
+    with pytest.raises(meshbits.MeshbitsError, match="vertex 1 has a NaN"):
+        _core.quantize(nan, 8, "axes", None, None, False)
+    with pytest.raises(meshbits.MeshbitsError, match="face 0 refers to vertex 7"):
+        _core.cluster(
+            good, np.array([[0, 1, 7]], dtype=np.uint32), 8, "cube", None, None, False, "keep"
+        )
+    with pytest.raises(meshbits.MeshbitsError, match="bits must be an integer from 1 to 32"):
+        _core.quantize(good, 0, "cube", None, None, False)
+    with pytest.raises(meshbits.MeshbitsError, match="both box corners"):
+        _core.quantize(good, 8, "cube", (0, 0, 0), None, False)
+    with pytest.raises(ValueError, match="grid must be"):
+        _core.quantize(good, 8, "sphere", None, None, False)
+    result = _core.cluster(good, faces, 8, "cube", None, None, False, "keep")
+    assert result["faces"].dtype == np.uint32 and result["vertex_map"].dtype == np.int64
+
+
 # --- command line ------------------------------------------------------------------------
 
 
@@ -590,6 +616,15 @@ def test_cli_quantize_text_report_and_bad_bits(capsys):
     mesh = str(DATA / "suzanne.ply")
     assert main(["quantize", mesh, "--bits", "5", "--grid", "axes", "--duplicates", "any"]) == 0
     text = capsys.readouterr().out
-    assert "5 bits per coordinate (axes grid)" in text and "max displacement" in text
+    assert "5-bit axes grid" in text and "max displacement" in text
     assert main(["quantize", mesh, "--bits", "0"]) == 2
     assert "bits must be from 1 to 32" in capsys.readouterr().err
+
+
+def test_cli_quantize_refuses_to_write_an_empty_mesh(tmp_path, capsys):
+    path = tmp_path / "flat.ply"
+    meshbits.save_mesh(path, np.array([[0.0, 0, 0], [1, 0, 0], [0, 1e-3, 0]]), [[0, 1, 2]])
+    out = tmp_path / "out.ply"
+    assert main(["quantize", str(path), "--bits", "1", "-o", str(out)]) == 2
+    assert "no face survives clustering at 1 bits" in capsys.readouterr().err
+    assert not out.exists()

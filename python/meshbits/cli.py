@@ -121,6 +121,10 @@ def _run_quantize(args: argparse.Namespace) -> int:
     vertices, faces = load_mesh(args.mesh)
     result = cluster(vertices, faces, args.bits, grid=args.grid, duplicates=args.duplicates)
     if args.output is not None:
+        if result.output_faces == 0:
+            raise UserError(
+                f"no face survives clustering at {args.bits} bits; nothing written to {args.output}"
+            )
         save_mesh(args.output, result.vertices, result.faces)
     report = {
         "mesh": str(args.mesh),
@@ -132,7 +136,7 @@ def _run_quantize(args: argparse.Namespace) -> int:
         return EXIT_OK
     _print_table(
         f"{report['mesh']}: {result.input_vertices} vertices, {result.input_faces} faces, "
-        f"{result.bits} bits per coordinate ({result.grid} grid)",
+        f"{result.bits}-bit {result.grid} grid",
         [
             ("vertices kept", result.output_vertices),
             ("  merged", result.merged_vertices),

@@ -144,13 +144,14 @@ class Clustered:
         One vertex per kept cluster, at the dequantised position of its code (length), so
         ``vertices == origin + codes * step`` exactly. Ordered by the smallest input index
         in each cluster.
-    faces : ndarray, shape (f, 3), int64
-        Kept faces, in input order, with their input winding, indexing ``vertices``.
+    faces : ndarray, shape (f, 3), uint32
+        Kept faces, in input order, with their input winding, indexing ``vertices``
+        (uint32 like the face arrays the kernels take; ``trimesh.Trimesh`` accepts it).
     codes : ndarray, shape (k, 3)
         Codes of ``vertices``, dtype as in :class:`Quantized`.
     vertex_map : ndarray, shape (n,), int64
         Output vertex of each input vertex, ``-1`` when its cluster was dropped.
-    face_index : ndarray, shape (f,), int64
+    face_index : ndarray, shape (f,), uint32
         Input face of each output face (ascending).
     input_vertices, input_faces, output_vertices, output_faces : int
         Sizes before and after. ``input_vertices = output_vertices + merged_vertices +
