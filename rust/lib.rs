@@ -7,6 +7,8 @@
 //! ([`closest`]). Kernels take plain slices (`&[[f64; 3]]` vertices,
 //! `&[[u32; 3]]` faces), return `Result<_, MeshError>` and never panic on user data; the
 //! only file that knows Python is [`python`].
+//!
+//! Grid quantization to B bits and vertex clustering: [`quantize`].
 
 pub mod adjacency;
 pub mod bvh;
@@ -15,6 +17,7 @@ pub mod complexity;
 pub mod error;
 pub mod hausdorff;
 mod python;
+pub mod quantize;
 pub mod sampling;
 
 pub use error::MeshError;

@@ -30,6 +30,7 @@ from .model import (
     plan_for_size,
     plan_for_vertices,
 )
+from .quantize import Clustered, Quantized, cluster, dequantize, quantize
 from .simplify import simplify
 from .threads import get_num_threads, set_num_threads, threads
 
@@ -39,15 +40,19 @@ __all__ = [
     "Allocation",
     "Closest",
     "ClosestPoints",
+    "Clustered",
     "CompressResult",
     "DirectedHausdorff",
     "Hausdorff",
     "Iteration",
     "MeshbitsError",
+    "Quantized",
     "ShapeComplexity",
     "SurfaceSamples",
     "__version__",
+    "cluster",
     "compress",
+    "dequantize",
     "example_mesh_path",
     "get_num_threads",
     "guaranteed_bits",
@@ -57,6 +62,7 @@ __all__ = [
     "plan_for_error",
     "plan_for_size",
     "plan_for_vertices",
+    "quantize",
     "save_mesh",
     "set_num_threads",
     "shape_complexity",

@@ -53,5 +53,28 @@ def hausdorff_directed(
 def surface_samples(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32], samples: int, seed: int
 ) -> dict[str, Any]: ...
+def quantize(
+    vertices: npt.NDArray[np.float64],
+    bits: int,
+    grid: str,
+    box_min: tuple[float, float, float] | None,
+    box_max: tuple[float, float, float] | None,
+    centered: bool,
+) -> dict[str, Any]: ...
+def dequantize(
+    codes: npt.NDArray[np.int64],
+    origin: tuple[float, float, float],
+    step: tuple[float, float, float],
+) -> npt.NDArray[np.float64]: ...
+def cluster(
+    vertices: npt.NDArray[np.float64],
+    faces: npt.NDArray[np.uint32],
+    bits: int,
+    grid: str,
+    box_min: tuple[float, float, float] | None,
+    box_max: tuple[float, float, float] | None,
+    centered: bool,
+    duplicates: str,
+) -> dict[str, Any]: ...
 def set_num_threads(threads: int) -> None: ...
 def get_num_threads() -> int: ...

@@ -15,10 +15,11 @@ from pathlib import Path
 from typing import Any
 
 from .complexity import shape_complexity
-from .constants import ESTIMATORS, HAUSDORFF_REFINE_BUDGET
+from .constants import DUPLICATES, ESTIMATORS, GRIDS, HAUSDORFF_REFINE_BUDGET
 from .hausdorff import hausdorff
-from .io import example_mesh_path, load_mesh
+from .io import example_mesh_path, load_mesh, save_mesh
 from .model import METHODS, parse_size, plan_for_error, plan_for_size, plan_for_vertices
+from .quantize import cluster
 
 __all__ = ["main"]
 
@@ -521,6 +522,62 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _add_quantize(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "quantize",
+        help="quantize a mesh to B bits per coordinate and cluster its vertices (Sec. 1.1)",
+    )
+    p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
+    p.add_argument("--bits", type=int, required=True, help="bits per coordinate, 1 to 32")
+    p.add_argument("-o", "--output", type=Path, help="write the clustered mesh (PLY, OBJ, ...)")
+    p.add_argument("--grid", choices=GRIDS, default="cube", help="one step (cube) or one per axis")
+    p.add_argument(
+        "--duplicates",
+        choices=DUPLICATES,
+        default="keep",
+        help="drop repeated faces: no (keep), same winding (oriented), any order (any)",
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=_run_quantize)
+
+
+def _run_quantize(args: argparse.Namespace) -> int:
+    vertices, faces = load_mesh(args.mesh)
+    result = cluster(vertices, faces, args.bits, grid=args.grid, duplicates=args.duplicates)
+    if args.output is not None:
+        if result.output_faces == 0:
+            raise UserError(
+                f"no face survives clustering at {args.bits} bits; nothing written to {args.output}"
+            )
+        save_mesh(args.output, result.vertices, result.faces)
+    report = {
+        "mesh": str(args.mesh),
+        "output": None if args.output is None else str(args.output),
+        **result.to_dict(),
+    }
+    if args.json:
+        _print_json(report)
+        return EXIT_OK
+    _print_table(
+        f"{report['mesh']}: {result.input_vertices} vertices, {result.input_faces} faces, "
+        f"{result.bits}-bit {result.grid} grid",
+        [
+            ("vertices kept", result.output_vertices),
+            ("  merged", result.merged_vertices),
+            ("  unreferenced (dropped)", result.unreferenced_vertices),
+            ("faces kept", result.output_faces),
+            ("  degenerate (dropped)", result.degenerate_faces),
+            ("  duplicate (dropped)", result.duplicate_faces),
+            ("grid size S (length)", result.grid_size),
+            ("step (length)", " ".join(f"{s:.6g}" for s in result.step)),
+            ("bound 0.5|step| (length)", result.bound),
+            ("max displacement (length)", result.max_displacement),
+            ("written to", report["output"] or "-"),
+        ],
+    )
+    return EXIT_OK
+
+
 _COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_k,
     _add_demo,
@@ -528,6 +585,7 @@ _COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_compress,
     _add_calibrate,
     _add_hausdorff,
+    _add_quantize,
 )
 
 

@@ -59,3 +59,17 @@ HAUSDORFF_MAX_SAMPLES = 1_000_000
 #: Largest number of extra point queries the refinement of the certified upper bound may
 #: spend per direction before it stops and reports ``converged=False``.
 HAUSDORFF_REFINE_BUDGET = 20_000_000
+#: Quantization grids: ``"cube"``, one step ``S / (2^B - 1)`` on every axis with ``S`` the
+#: largest box side (the paper, Draco, gltfpack); ``"axes"``, a step per axis.
+GRIDS = ("cube", "axes")
+
+#: Code conventions: ``"corner"``, codes in ``[0, 2^B - 1]`` (paper Sec. 1.1);
+#: ``"centered"``, codes in ``[-2^(B-1) + 1, 2^(B-1)]`` (paper Sec. 8), same grid.
+CONVENTIONS = ("corner", "centered")
+
+#: Which repeated faces clustering drops: none, same corners in the same cyclic order,
+#: or same corner set in any order.
+DUPLICATES = ("keep", "oriented", "any")
+
+#: Bits per coordinate accepted by the quantizer (codes are 32-bit integers).
+MIN_BITS, MAX_BITS = 1, 32

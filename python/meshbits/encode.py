@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from .mesh import MeshLike, as_mesh
+from .quantize import quantize
 
 __all__ = [
     "ENCODERS",
@@ -125,16 +126,15 @@ def encode_draco(
 def encode_quantized_ply(
     mesh: MeshLike, bits: int, *, origin: Any = None, grid_size: float | None = None
 ) -> Encoded:
-    """Binary PLY with positions quantized to ``bits`` on the cube grid and stored as
-    dequantised float32 (what any PLY reader accepts); unreferenced vertices dropped."""
+    """Binary PLY with positions quantized to ``bits`` on the cube grid (by
+    :func:`meshbits.quantize`) and stored as dequantised float32 (what any PLY reader
+    accepts); unreferenced vertices dropped."""
     vertices, faces = as_mesh(mesh)
     bits = _check_bits(bits, 24)
     used, inverse = np.unique(faces.ravel(), return_inverse=True)
     vertices, faces = vertices[used], inverse.reshape(-1, 3)
     lo, size = _grid(vertices, origin, grid_size)
-    step = size / (2**bits - 1) if size > 0 else 0.0
-    codes = np.rint((vertices - lo) / step) if step > 0 else np.zeros_like(vertices)
-    positions = (lo + codes * step).astype(np.float32)
+    positions = quantize(vertices, bits, box=(lo, lo + size)).positions.astype(np.float32)
     header = (
         "ply\nformat binary_little_endian 1.0\n"
         f"comment meshbits quantized positions: {bits} bits per coordinate, "

