@@ -61,6 +61,15 @@ def test_vertex_budget_uses_the_models_bits():
     assert len(result.iterations) == 1 and result.met
 
 
+def test_certified_error_budget():
+    result = compress(SPOT, error=0.003, relative=True, certify=True)
+    assert result.met
+    assert result.error <= result.error_upper <= result.budget
+    # The certified bound holds against a dense independent measurement.
+    dense = meshbits.hausdorff(SPOT, (result.vertices, result.faces), samples=300_000, seed=99)
+    assert dense.distance <= result.error_upper
+
+
 def test_unreachable_budget_says_so():
     result = compress(SPOT, size=8 * 200, max_iterations=3)
     assert not result.met

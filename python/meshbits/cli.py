@@ -110,7 +110,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     args.size, args.error, args.vertices, args.relative = None, DEMO_RELATIVE_ERROR, None, True
     args.lods, args.alpha, args.connectivity_bits = None, None, None
     args.max_iterations, args.samples, args.seed = 6, None, 0
-    args.estimator, args.quiet = "circumsphere", args.json
+    args.estimator, args.quiet, args.certify = "circumsphere", args.json, False
     if not args.json:
         print(
             f"meshbits demo: compressing {args.mesh.name} (Spot by Keenan Crane, public "
@@ -156,6 +156,11 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--samples", type=int, help="Hausdorff samples per mesh (default: scaled)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere")
+    p.add_argument(
+        "--certify",
+        action="store_true",
+        help="an error budget is met only when a certified upper bound of the error is",
+    )
     p.add_argument("--quiet", action="store_true", help="no per-iteration lines on stderr")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=_run_compress)
@@ -204,6 +209,7 @@ def _run_compress(args: argparse.Namespace) -> int:
         samples=args.samples,
         seed=args.seed,
         estimator=args.estimator,
+        certify=args.certify,
         progress=report,
     )
     if output is not None:
@@ -231,6 +237,11 @@ def _run_compress(args: argparse.Namespace) -> int:
                     f"B = {result.bits}, V = {len(result.vertices)}, {len(result.faces)} faces",
                 ),
                 ("measured error (length)", result.error),
+                *(
+                    [("certified error bound (length)", result.error_upper)]
+                    if result.error_upper is not None
+                    else []
+                ),
                 ("measured error / S", result.error / result.complexity.grid_size),
                 ("size", f"{result.size_bytes} bytes ({result.format})"),
                 ("passes", len(result.iterations)),

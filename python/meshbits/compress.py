@@ -38,6 +38,9 @@ __all__ = ["SLACK", "CompressResult", "Iteration", "compress"]
 #: A budget counts as met tightly when less than this fraction of it is left unused.
 SLACK = 0.1
 
+#: With ``certify=True``, the certified bound is refined to this fraction of the budget.
+CERTIFY_TOLERANCE = 0.05
+
 #: Largest bits per coordinate an encoder is asked for (Draco accepts 1..30).
 MAX_BITS = 30
 
@@ -66,6 +69,9 @@ class Iteration:
         (length).
     measured_size_bits : int
         Size of the encoded file (bits).
+    measured_error_upper : float or None
+        With ``certify=True``: a certified upper bound on the true Hausdorff distance
+        (length); ``measured_error`` is then the refined sampled lower bound.
     met : bool
         Whether this pass met the budget.
     seconds : float
@@ -81,6 +87,7 @@ class Iteration:
     predicted_size_bits: float
     measured_error: float
     measured_size_bits: int
+    measured_error_upper: float | None
     met: bool
     seconds: float
 
@@ -116,7 +123,10 @@ class CompressResult:
     step : float
         Grid step, ``S / (2**bits - 1)`` with S the cube grid's side (length).
     error : float
-        Measured symmetric Hausdorff distance to the original (length).
+        Measured symmetric Hausdorff distance to the original (length): sampled, so a
+        lower bound on the true one.
+    error_upper : float or None
+        With ``certify=True``, a certified upper bound on the true distance (length).
     size_bits : int
         Size of the encoded output (bits).
     data : bytes
@@ -146,6 +156,7 @@ class CompressResult:
     origin: np.ndarray = field(repr=False)
     step: float
     error: float
+    error_upper: float | None
     size_bits: int
     data: bytes = field(repr=False)
     format: str
@@ -178,6 +189,7 @@ class CompressResult:
             "vertices": len(self.vertices),
             "faces": len(self.faces),
             "error": self.error,
+            "error_upper": self.error_upper,
             "size_bits": self.size_bits,
             "size_bytes": self.size_bytes,
             "format": self.format,
@@ -252,6 +264,7 @@ def compress(
     samples: int | None = None,
     seed: int = 0,
     estimator: str = "circumsphere",
+    certify: bool = False,
     progress: Callable[[Iteration], None] | None = None,
 ) -> CompressResult:
     """Compress a mesh to meet one budget, choosing B and V by the paper's model (Sec. 7).
@@ -292,6 +305,11 @@ def compress(
         face count found 71% of the error that 1e6 samples find).
     estimator
         Estimator of K.
+    certify
+        Measure with a certified upper bound (:func:`meshbits.hausdorff` with
+        ``bounds=True``, refined to a tolerance of :data:`CERTIFY_TOLERANCE` times the
+        budget) and count an error budget as met only when that *upper bound* is within
+        it. Slower; without it the sampled distance (a lower bound) decides.
     progress
         Called with each :class:`Iteration` as it completes.
     """
@@ -369,16 +387,21 @@ def compress(
         encoded = encode(level_mesh, bits, format=format, origin=origin, grid_size=size_of_grid)
         seconds["encode"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        measured = hausdorff(
+        measurement = hausdorff(
             original,
             (encoded.vertices, encoded.faces),
             samples=samples or default_samples(max(len(original[1]), len(encoded.faces))),
             seed=seed,
             statistics=False,
-        ).distance
+            bounds=certify,
+            tolerance=CERTIFY_TOLERANCE * budget if certify and constraint == "error" else None,
+        )
+        measured = measurement.distance
+        upper = measurement.upper if certify else None
         seconds["hausdorff"] += time.perf_counter() - t0
 
-        met = _meets(constraint, budget, measured, encoded.size_bits)
+        decisive = measured if upper is None else upper
+        met = _meets(constraint, budget, decisive, encoded.size_bits)
         record = Iteration(
             target=float(target),
             bits=bits,
@@ -391,6 +414,7 @@ def compress(
             ),
             measured_error=float(measured),
             measured_size_bits=encoded.size_bits,
+            measured_error_upper=upper,
             met=met,
             seconds=time.perf_counter() - begin,
         )
@@ -405,11 +429,11 @@ def compress(
             break
         if met:
             passing = target if passing is None else max(passing, target)
-            if _slack(constraint, budget, measured, encoded.size_bits) < SLACK:
+            if _slack(constraint, budget, decisive, encoded.size_bits) < SLACK:
                 break
         else:
             failing = target if failing is None else min(failing, target)
-        ratio = budget / (measured if constraint == "error" else encoded.size_bits)
+        ratio = budget / (decisive if constraint == "error" else encoded.size_bits)
         next_target = _next_target(target, ratio, passing, failing)
         if next_target is None or (constraint == "error" and next_target >= grid_size):
             break
@@ -448,6 +472,7 @@ def compress(
         origin=origin,
         step=step,
         error=record.measured_error,
+        error_upper=record.measured_error_upper,
         size_bits=encoded.size_bits,
         data=encoded.data,
         format=encoded.format,
