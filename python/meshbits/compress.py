@@ -356,7 +356,15 @@ def compress(
             if key >= available:
                 simplified_cache[key] = (original, None)
             else:
-                v, f = simplify_to(original[0], original[1], key)
+                # Start from the coarsest level made so far that still has enough
+                # vertices: later passes then reduce a small mesh, not the original.
+                finer = [
+                    mesh
+                    for mesh, _ in simplified_cache.values()
+                    if mesh is not original and len(mesh[0]) >= key
+                ]
+                source = min(finer, key=lambda mesh: len(mesh[0])) if finer else original
+                v, f = simplify_to(source[0], source[1], key)
                 simplified_cache[key] = (as_mesh(v, f), None)
             seconds["simplify"] += time.perf_counter() - begin
         return simplified_cache[key]
