@@ -532,6 +532,9 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
             rows.append((f"{label} converged", d.converged))
         rows.append((f"{label} samples", d.n_samples))
         rows.append((f"{label} argmax", "(" + ", ".join(f"{x:.6g}" for x in d.argmax) + ")"))
+    if args.colors is not None:
+        rows.append(("coloured mesh (A by distance to B)", report["colors"]["path"]))
+        rows.append(("colour bar", report["colors"]["colorbar_path"]))
     _print_table(f"{args.a} vs {args.b} (seed {result.seed}; lengths in the files' unit)", rows)
     return EXIT_OK
 
