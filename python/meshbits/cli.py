@@ -14,6 +14,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .complexity import shape_complexity
 from .constants import DUPLICATES, ESTIMATORS, GRIDS, HAUSDORFF_REFINE_BUDGET
 from .hausdorff import hausdorff
@@ -481,6 +483,17 @@ def _add_hausdorff(sub: argparse._SubParsersAction) -> None:
         default=HAUSDORFF_REFINE_BUDGET,
         help="largest number of refinement points per direction",
     )
+    p.add_argument(
+        "--colors",
+        type=Path,
+        default=None,
+        metavar="OUT.ply",
+        help="also write A as a PLY coloured by each vertex's distance to B "
+        "(and OUT_colorbar.png; needs matplotlib)",
+    )
+    p.add_argument(
+        "--vmax", type=float, default=None, help="distance of the top colour (default: largest)"
+    )
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=_run_hausdorff)
@@ -509,6 +522,8 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
         progress=None if args.quiet else _progress,
     )
     report = {"a": str(args.a), "b": str(args.b), **result.to_dict()}
+    if args.colors is not None:
+        report["colors"] = _write_colors(meshes["a"], meshes["b"], args)
     if args.json:
         _print_json(report)
         return EXIT_OK
@@ -529,6 +544,9 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
             rows.append((f"{label} converged", d.converged))
         rows.append((f"{label} samples", d.n_samples))
         rows.append((f"{label} argmax", "(" + ", ".join(f"{x:.6g}" for x in d.argmax) + ")"))
+    if args.colors is not None:
+        rows.append(("coloured mesh (A by distance to B)", report["colors"]["path"]))
+        rows.append(("colour bar", report["colors"]["colorbar_path"]))
     _print_table(f"{args.a} vs {args.b} (seed {result.seed}; lengths in the files' unit)", rows)
     return EXIT_OK
 
@@ -589,6 +607,79 @@ def _run_quantize(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _write_colors(
+    a: tuple[Any, Any], b: tuple[Any, Any], args: argparse.Namespace
+) -> dict[str, Any]:
+    """Colour A's vertices by their exact distance to B (``meshbits plot.error_map``)."""
+    from .hausdorff import ClosestPoints
+    from .plot import error_map
+
+    distances = ClosestPoints(b).query(a[0]).distances
+    bar = args.colors.with_name(args.colors.stem + "_colorbar.png")
+    written = error_map(a, distances, args.colors, colorbar_path=bar, vmax=args.vmax)
+    if not args.quiet:
+        _progress(f"wrote {written.path} and {written.colorbar_path}")
+    return {
+        "path": str(written.path),
+        "colorbar_path": str(written.colorbar_path),
+        "vmax": written.vmax,
+        "vertex_distance_max": float(distances.max()) if len(distances) else 0.0,
+    }
+
+
+def _add_plot(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "plot",
+        help="draw the paper's Fig. 1 for a mesh: iso-error and iso-size curves over (V, B) "
+        "with the optimal B(V) (needs matplotlib)",
+    )
+    p.add_argument("mesh", type=Path, help="mesh file")
+    p.add_argument("-o", "--output", type=Path, required=True, help="PNG to write")
+    p.add_argument("--alpha", type=float, default=1.0, help="coordinate compression factor")
+    p.add_argument(
+        "--connectivity-bits", type=float, default=4.0, help="T, bits per vertex (default 4)"
+    )
+    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=_run_plot)
+
+
+def _run_plot(args: argparse.Namespace) -> int:
+    from .plot import error_surface
+
+    vertices, faces = load_mesh(args.mesh)
+    k = shape_complexity(vertices, faces, estimator=args.estimator)
+    n = len(np.unique(np.asarray(faces).ravel()))
+    plan = plan_for_vertices(
+        max(n, 4), k.k, alpha=args.alpha, connectivity_bits=args.connectivity_bits
+    )
+    low = max(4.0, min(n / 100.0, 100.0))
+    high = max(100.0 * n, 10.0 * low)
+    error_surface(
+        k.k,
+        alpha=args.alpha,
+        connectivity_bits=args.connectivity_bits,
+        vertices=(low, high),
+        bits=(2.0, max(20.0, plan.bits + 4.0)),
+        points=[(n, plan.bits, f"{args.mesh.name}: V = {n}")],
+        title=f"{args.mesh.name}: K = {k.k:.4g} (grid), alpha = {args.alpha:g}, "
+        f"T = {args.connectivity_bits:g}",
+        path=args.output,
+    )
+    report = {
+        "mesh": str(args.mesh),
+        "output": str(args.output),
+        "k": k.k,
+        "vertices": n,
+        "optimal_bits": plan.bits,
+    }
+    if args.json:
+        _print_json(report)
+    else:
+        print(f"wrote {args.output} (K = {k.k:.4g}, V = {n}, optimal B = {plan.bits:.2f})")
+    return EXIT_OK
+
+
 _COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_k,
     _add_demo,
@@ -597,6 +688,7 @@ _COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_calibrate,
     _add_hausdorff,
     _add_quantize,
+    _add_plot,
 )
 
 
