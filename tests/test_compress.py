@@ -93,6 +93,28 @@ def test_codes_rebuild_the_output():
     assert result.codes.max() <= 2**result.bits - 1
 
 
+@pytest.mark.parametrize("suffix", [".obj", ".stl", ".off", ".glb", ".ply"])
+def test_mesh_formats_in_and_soups_welded(tmp_path, suffix):
+    path = tmp_path / f"spot{suffix}"
+    trimesh.Trimesh(*SPOT, process=False).export(path)
+    mesh = meshbits.load_mesh(path)
+    if suffix == ".stl":
+        assert len(mesh[0]) == 3 * len(mesh[1])  # a triangle soup
+    result = compress(mesh, error=0.004, relative=True)
+    assert result.met and len(result.vertices) < len(SPOT[0])
+    assert result.complexity.k == pytest.approx(meshbits.shape_complexity(SPOT).k, rel=1e-6)
+
+
+def test_scene_with_two_meshes_is_concatenated(tmp_path):
+    box = trimesh.creation.box()
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    sphere.apply_translation([3, 0, 0])
+    path = tmp_path / "scene.glb"
+    trimesh.Scene([box, sphere]).export(path)
+    vertices, faces = meshbits.load_mesh(path)
+    assert len(faces) == len(box.faces) + len(sphere.faces)
+
+
 def test_ply_format():
     result = compress(SPOT, error=0.005, relative=True, format="ply")
     assert result.format == "ply" and result.data.startswith(b"ply\n")

@@ -203,6 +203,16 @@ class CompressResult:
         }
 
 
+def _weld(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Merge vertices with identical coordinates (STL files are triangle soups: without
+    this the simplifier sees no shared edge)."""
+    vertices, faces = mesh
+    unique, inverse = np.unique(vertices, axis=0, return_inverse=True)
+    if len(unique) == len(vertices):
+        return mesh
+    return as_mesh(unique, inverse.reshape(-1)[faces])
+
+
 def _box(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Bounding box of the vertices some face references."""
     used = mesh[0][np.unique(mesh[1])]
@@ -272,7 +282,8 @@ def compress(
     Parameters
     ----------
     mesh
-        ``trimesh.Trimesh`` or ``(vertices, faces)``.
+        ``trimesh.Trimesh`` or ``(vertices, faces)``; vertices with identical coordinates
+        are welded first.
     size
         File-size budget in **bits** (the CLI parses "100KB").
     error
@@ -325,7 +336,7 @@ def compress(
         raise ValueError(f"max_iterations must be at least 1, got {max_iterations}")
     if format not in ("draco", "ply"):
         raise ValueError(f"format must be 'draco' or 'ply', got {format!r}")
-    original = as_mesh(mesh)
+    original = _weld(as_mesh(mesh))
     seconds = {"complexity": 0.0, "simplify": 0.0, "encode": 0.0, "hausdorff": 0.0}
 
     start = time.perf_counter()
