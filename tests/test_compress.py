@@ -113,6 +113,7 @@ def test_scene_with_two_meshes_is_concatenated(tmp_path):
     trimesh.Scene([box, sphere]).export(path)
     vertices, faces = meshbits.load_mesh(path)
     assert len(faces) == len(box.faces) + len(sphere.faces)
+    assert vertices[:, 0].max() == pytest.approx(4.0)  # the sphere's transform is applied
 
 
 def test_ply_format():
