@@ -346,7 +346,11 @@ mod tests {
             (DVec3::new(1.5, 0.0, 0.0), 0.5),
         ] {
             let (q, d2) = closest_point_on_triangle(p, a, b, c);
-            assert!((d2.sqrt() - expected).abs() < 1e-12, "{p}: {} vs {expected}", d2.sqrt());
+            assert!(
+                (d2.sqrt() - expected).abs() < 1e-12,
+                "{p}: {} vs {expected}",
+                d2.sqrt()
+            );
             assert!(((p - q).length_squared() - d2).abs() < 1e-15);
         }
     }

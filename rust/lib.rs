@@ -9,6 +9,7 @@
 //! only file that knows Python is [`python`].
 
 pub mod adjacency;
+pub mod alloc;
 pub mod bvh;
 pub mod closest;
 pub mod complexity;
@@ -18,3 +19,6 @@ mod python;
 pub mod sampling;
 
 pub use error::MeshError;
+
+#[global_allocator]
+static GLOBAL: alloc::HugePageAlloc = alloc::HugePageAlloc;
