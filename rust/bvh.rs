@@ -39,7 +39,6 @@ use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::builder::build_bvh2;
-use obvhs::ploc::{PlocSearchDistance, SortPrecision};
 use rayon::prelude::*;
 
 use crate::closest::PreparedTriangle;
@@ -55,18 +54,13 @@ const MAX_EXTENT: f64 = 1e36;
 /// inside a unit.
 const QUERY_CHUNK: usize = 512;
 
-/// obvhs build preset: PLOC with a short search radius, a little reinsertion, and leaves
-/// of up to four triangles (measured best for closest-point queries; see
-/// `benches/bench_hausdorff.py`).
+/// obvhs build preset: PLOC with the shortest search radius, no reinsertion and no leaf
+/// collapse (one triangle per leaf). On the benchmark meshes, longer searches,
+/// reinsertion and SAH-collapsed leaves of up to 2, 4 or 8 triangles built 1.3 to 2 times
+/// slower and answered closest-point queries no faster (`benches/bench_hausdorff.py`).
 const BUILD_PARAMS: BvhBuildParams = BvhBuildParams {
-    pre_split: false,
-    ploc_search_distance: PlocSearchDistance::Low,
-    search_depth_threshold: 2,
-    reinsertion_batch_ratio: 0.02,
-    post_collapse_reinsertion_batch_ratio_multiplier: 0.0,
-    sort_precision: SortPrecision::U64,
-    max_prims_per_leaf: 4,
-    collapse_traversal_cost: 3.0,
+    max_prims_per_leaf: 1,
+    ..BvhBuildParams::fastest_build()
 };
 
 /// Two sibling boxes and what they hold: one cache line.
@@ -162,19 +156,60 @@ fn outward_box(corners: [DVec3; 3], pad: f64) -> Aabb {
     )
 }
 
+/// Interleaves the low 21 bits of `x`, `y`, `z` into a 63-bit Morton code.
+#[inline]
+#[must_use]
+fn morton3(x: u64, y: u64, z: u64) -> u64 {
+    fn spread(v: u64) -> u64 {
+        let mut v = v & 0x1f_ffff;
+        v = (v | v << 32) & 0x001f_0000_0000_ffff;
+        v = (v | v << 16) & 0x001f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        v = (v | v << 2) & 0x1249_2492_4924_9249;
+        v
+    }
+    spread(x) | spread(y) << 1 | spread(z) << 2
+}
+
+/// A processing order for queries: the indices of `points` sorted along a Morton curve
+/// (2²¹ cells per side of their bounding cube; ties by index).
+///
+/// Consecutive queries in this order are close, so each search can start from the
+/// previous answer (a good `hint`) and finds the tree's nodes in cache. It changes speed
+/// only: every answer is exact and independent of the order.
+#[must_use]
+pub fn coherent_order(points: &[DVec3]) -> Vec<u32> {
+    let (lo, hi) = points
+        .par_iter()
+        .fold(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        )
+        .reduce(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
+            |(a, b), (c, d)| (a.min(c), b.max(d)),
+        );
+    let cells = ((1u64 << 21) - 1) as f64;
+    let side = (hi - lo).max_element();
+    let scale = if side > 0.0 { cells / side } else { 0.0 };
+    let mut keyed: Vec<(u64, u32)> = points
+        .par_iter()
+        .enumerate()
+        .map(|(i, &p)| {
+            let g = ((p - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(cells));
+            (morton3(g.x as u64, g.y as u64, g.z as u64), i as u32)
+        })
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_par_iter().map(|(_, i)| i).collect()
+}
+
 impl TriangleTree {
     /// Builds the tree over `faces` (indices into `vertices`, length unit of the caller).
     ///
     /// An empty face list gives an empty tree (every query answers `None`).
     pub fn build(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Result<Self, MeshError> {
-        Self::build_with(vertices, faces, BUILD_PARAMS)
-    }
-
-    pub fn build_with(
-        vertices: &[[f64; 3]],
-        faces: &[[u32; 3]],
-        params: BvhBuildParams,
-    ) -> Result<Self, MeshError> {
         check_finite(vertices)?;
         check_indices(faces, vertices.len())?;
         if faces.len() >= u32::MAX as usize / 2 {
@@ -202,7 +237,7 @@ impl TriangleTree {
             .par_iter()
             .map(|f| outward_box([local(f[0]), local(f[1]), local(f[2])], pad))
             .collect();
-        let bvh = build_bvh2(&boxes, params, &mut Duration::default());
+        let bvh = build_bvh2(&boxes, BUILD_PARAMS, &mut Duration::default());
 
         let mut tree = TriangleTree {
             centre,
@@ -423,7 +458,9 @@ impl TriangleTree {
     /// Exact nearest triangle to each point (caller's frame), in parallel.
     ///
     /// Returns, per point, the distance (length), the closest point (caller's frame,
-    /// length) and the face index. Results do not depend on the thread count.
+    /// length) and the face index. The points are searched in [`coherent_order`], each
+    /// search starting from the previous answer. Results do not depend on the order or the
+    /// thread count.
     pub fn query(&self, points: &[[f64; 3]]) -> Result<QueryResult, MeshError> {
         if self.is_empty() {
             return Err(MeshError::Empty("the tree holds no triangles".into()));
@@ -434,26 +471,36 @@ impl TriangleTree {
             }
             other => other,
         })?;
-        let n = points.len();
-        let (mut dist, mut closest, mut face) = (vec![0.0; n], vec![[0.0; 3]; n], vec![0u32; n]);
-        points
+        let local: Vec<DVec3> = points
+            .par_iter()
+            .map(|p| DVec3::from_array(*p) - self.centre)
+            .collect();
+        let order = coherent_order(&local);
+        let hits: Vec<Nearest> = order
             .par_chunks(QUERY_CHUNK)
-            .zip(dist.par_chunks_mut(QUERY_CHUNK))
-            .zip(closest.par_chunks_mut(QUERY_CHUNK))
-            .zip(face.par_chunks_mut(QUERY_CHUNK))
-            .for_each(|(((pts, dist), closest), face)| {
+            .flat_map_iter(|chunk| {
                 let mut stack = self.stack();
                 let mut hint = u32::MAX;
-                for (i, p) in pts.iter().enumerate() {
-                    let local = DVec3::from_array(*p) - self.centre;
-                    if let Some(hit) = self.nearest_local(local, hint, 0.0, &mut stack) {
+                chunk
+                    .iter()
+                    .map(|&i| {
+                        let hit = self
+                            .nearest_local(local[i as usize], hint, 0.0, &mut stack)
+                            .expect("the tree is not empty");
                         hint = hit.slot;
-                        dist[i] = hit.d2.sqrt();
-                        closest[i] = (hit.point + self.centre).to_array();
-                        face[i] = hit.face;
-                    }
-                }
-            });
+                        hit
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let n = points.len();
+        let (mut dist, mut closest, mut face) = (vec![0.0; n], vec![[0.0; 3]; n], vec![0u32; n]);
+        for (&i, hit) in order.iter().zip(&hits) {
+            let i = i as usize;
+            dist[i] = hit.d2.sqrt();
+            closest[i] = (hit.point + self.centre).to_array();
+            face[i] = hit.face;
+        }
         Ok((dist, closest, face))
     }
 

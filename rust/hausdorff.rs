@@ -47,14 +47,14 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::bvh::{SearchStack, TriangleTree};
+use crate::bvh::{SearchStack, TriangleTree, coherent_order};
 use crate::closest::covering_radius;
 use crate::complexity::deterministic_sum;
 use crate::error::{MeshError, check_finite, check_indices};
 use crate::sampling::{SurfaceSamples, local_corners, surface_samples};
 
-/// Samples per parallel work unit; a unit runs sequentially, each search starting from
-/// the previous sample's nearest triangle.
+/// Samples per parallel work unit; a unit runs sequentially, in Morton order, each search
+/// starting from the previous sample's nearest triangle.
 const SAMPLE_CHUNK: usize = 1024;
 
 /// Relative margin added to every upper bound for the f64 rounding of the distances
@@ -167,50 +167,57 @@ impl Best {
     }
 }
 
-/// Exact squared distance of every point, in parallel; also returns each point's nearest
-/// triangle slot (the hint for later searches).
+/// Exact squared distance of every point, in parallel, searched in [`coherent_order`];
+/// also returns each point's nearest triangle slot (the hint for later searches).
 fn exact_distances(tree: &TriangleTree, points: &[DVec3]) -> (Vec<f64>, Vec<u32>) {
-    let mut d2 = vec![0.0; points.len()];
-    let mut slots = vec![0u32; points.len()];
-    points
+    let order = coherent_order(points);
+    let hits: Vec<(f64, u32)> = order
         .par_chunks(SAMPLE_CHUNK)
-        .zip(d2.par_chunks_mut(SAMPLE_CHUNK))
-        .zip(slots.par_chunks_mut(SAMPLE_CHUNK))
-        .for_each(|((pts, d2), slots)| {
+        .flat_map_iter(|chunk| {
             let mut stack = tree.stack();
             let mut hint = u32::MAX;
-            for (k, &p) in pts.iter().enumerate() {
-                if let Some(hit) = tree.nearest_local(p, hint, 0.0, &mut stack) {
+            chunk
+                .iter()
+                .map(|&i| {
+                    let hit = tree
+                        .nearest_local(points[i as usize], hint, 0.0, &mut stack)
+                        .expect("the tree is not empty");
                     hint = hit.slot;
-                    d2[k] = hit.d2;
-                    slots[k] = hit.slot;
-                }
-            }
-        });
+                    (hit.d2, hit.slot)
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let mut d2 = vec![0.0; points.len()];
+    let mut slots = vec![0u32; points.len()];
+    for (&i, &(d, slot)) in order.iter().zip(&hits) {
+        (d2[i as usize], slots[i as usize]) = (d, slot);
+    }
     (d2, slots)
 }
 
-/// Max-only pass over `points` (indices offset by `first`): returns the best exact
-/// distance among them, given a running maximum `start_d2` already known.
+/// Max-only pass over `points` (sample indices offset by `first`), searched in
+/// [`coherent_order`]: returns the best exact distance among them, given a running
+/// maximum `start_d2` already known.
 fn max_only(tree: &TriangleTree, points: &[DVec3], first: usize, start_d2: f64) -> Best {
     let running = AtomicU64::new(start_d2.max(0.0).to_bits());
-    points
+    coherent_order(points)
         .par_chunks(SAMPLE_CHUNK)
-        .enumerate()
-        .map(|(chunk, pts)| {
+        .map(|chunk| {
             let mut stack = tree.stack();
             let mut hint = u32::MAX;
             let mut best = Best::NONE;
-            for (k, &p) in pts.iter().enumerate() {
+            for &i in chunk {
                 // Non-negative f64 order like their bit patterns.
                 let threshold = f64::from_bits(running.load(Ordering::Relaxed));
-                let Some(hit) = tree.nearest_local(p, hint, threshold, &mut stack) else {
+                let Some(hit) = tree.nearest_local(points[i as usize], hint, threshold, &mut stack)
+                else {
                     continue;
                 };
                 hint = hit.slot;
                 if hit.d2 >= threshold {
                     // The search ran to completion: exact.
-                    best.offer(hit.d2, first + chunk * SAMPLE_CHUNK + k);
+                    best.offer(hit.d2, first + i as usize);
                     if hit.d2 > threshold {
                         running.fetch_max(hit.d2.to_bits(), Ordering::Relaxed);
                     }

@@ -11,6 +11,7 @@
 //! Grid quantization to B bits and vertex clustering: [`quantize`].
 
 pub mod adjacency;
+pub mod alloc;
 pub mod bvh;
 pub mod closest;
 pub mod complexity;
@@ -21,3 +22,6 @@ pub mod quantize;
 pub mod sampling;
 
 pub use error::MeshError;
+
+#[global_allocator]
+static GLOBAL: alloc::HugePageAlloc = alloc::HugePageAlloc;

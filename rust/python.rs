@@ -240,6 +240,26 @@ fn build_tree<'py>(
     Ok(PyTriangleTree { tree })
 }
 
+/// Builds the BVHs of several meshes at once (their builds run concurrently: one build
+/// alone does not keep two cores busy).
+#[pyfunction]
+fn build_trees<'py>(
+    py: Python<'py>,
+    meshes: Vec<(PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, u32>)>,
+) -> PyResult<Vec<PyTriangleTree>> {
+    let views = meshes
+        .iter()
+        .map(|(v, f)| Ok((triples(v, "vertices")?, triples(f, "faces")?)))
+        .collect::<PyResult<Vec<_>>>()?;
+    let trees = run_detached(py, || {
+        views
+            .par_iter()
+            .map(|(v, f)| TriangleTree::build(v, f))
+            .collect::<Result<Vec<_>, MeshError>>()
+    })?;
+    Ok(trees.into_iter().map(|tree| PyTriangleTree { tree }).collect())
+}
+
 /// One-sided sampled Hausdorff distance from a mesh to a tree; a dict of raw results
 /// (see `meshbits.hausdorff`).
 #[pyfunction]
@@ -552,6 +572,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(shape_complexity, m)?)?;
     m.add_class::<PyTriangleTree>()?;
     m.add_function(wrap_pyfunction!(build_tree, m)?)?;
+    m.add_function(wrap_pyfunction!(build_trees, m)?)?;
     m.add_function(wrap_pyfunction!(hausdorff_directed, m)?)?;
     m.add_function(wrap_pyfunction!(surface_samples, m)?)?;
     m.add_function(wrap_pyfunction!(quantize, m)?)?;

@@ -134,7 +134,7 @@ pub struct SurfaceSamples {
     /// Points, in the frame with `centre` subtracted (length): vertex samples first, then
     /// area samples grouped by face.
     pub points: Vec<DVec3>,
-    /// Index of the source vertex of each vertex sample.
+    /// Index of the source vertex of each vertex sample (increasing).
     pub vertex_ids: Vec<u32>,
     /// `offsets[i] .. offsets[i + 1]` index the area samples of face `i`, counted from
     /// the first area sample.

@@ -38,6 +38,9 @@ class TriangleTree:
 def build_tree(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32]
 ) -> TriangleTree: ...
+def build_trees(
+    meshes: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.uint32]]],
+) -> list[TriangleTree]: ...
 def hausdorff_directed(
     vertices: npt.NDArray[np.float64],
     faces: npt.NDArray[np.uint32],

@@ -435,12 +435,11 @@ def hausdorff(
         bounds = True
     say = progress or (lambda _message: None)
     meshes = {"A": as_mesh(a), "B": as_mesh(b)}
-    trees = {}
-    for name, (vertices, faces) in meshes.items():
-        start = time.perf_counter()
-        say(f"building the BVH of {name} ({len(faces):,} faces)")
-        trees[name] = _core.build_tree(vertices, faces)
-        say(f"built the BVH of {name} in {time.perf_counter() - start:.2f} s")
+    start = time.perf_counter()
+    sizes = {name: f"{len(faces):,}" for name, (_, faces) in meshes.items()}
+    say(f"building the BVHs of A ({sizes['A']} faces) and B ({sizes['B']} faces)")
+    trees = dict(zip(meshes, _core.build_trees(list(meshes.values())), strict=True))
+    say(f"built the BVHs in {time.perf_counter() - start:.2f} s")
     directions = {}
     for source, target in (("A", "B"), ("B", "A")):
         vertices, faces = meshes[source]
