@@ -257,7 +257,10 @@ fn build_trees<'py>(
             .map(|(v, f)| TriangleTree::build(v, f))
             .collect::<Result<Vec<_>, MeshError>>()
     })?;
-    Ok(trees.into_iter().map(|tree| PyTriangleTree { tree }).collect())
+    Ok(trees
+        .into_iter()
+        .map(|tree| PyTriangleTree { tree })
+        .collect())
 }
 
 /// One-sided sampled Hausdorff distance from a mesh to a tree; a dict of raw results
