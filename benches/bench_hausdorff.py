@@ -31,9 +31,10 @@ import os
 import time
 from collections.abc import Callable
 
-import meshbits
 import numpy as np
 import trimesh
+
+import meshbits
 
 
 def bumpy_icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:

@@ -44,17 +44,9 @@ def trimesh_route(vertices: np.ndarray, faces: np.ndarray) -> float:
     unshared = mesh.face_adjacency_unshared
     a, b = vertices[edges[:, 0]], vertices[edges[:, 1]]
     c, d = vertices[unshared[:, 0]], vertices[unshared[:, 1]]
-    u, v, w = b - a, c - a, d - a
-    det = np.einsum("ij,ij->i", u, np.cross(v, w))
-    centre = (
-        (u * u).sum(1)[:, None] * np.cross(v, w)
-        + (v * v).sum(1)[:, None] * np.cross(w, u)
-        + (w * w).sum(1)[:, None] * np.cross(u, v)
-    ) / (2.0 * det[:, None])
+    radius = reference.circumsphere_radius(b - a, c - a, d - a)
     area = mesh.area_faces[mesh.face_adjacency].sum(axis=1) / 3.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        term = area / np.linalg.norm(centre, axis=1)
-    return float(np.nansum(np.where(np.isfinite(term), term, 0.0)))
+    return float((area / radius).sum())
 
 
 def meshes(max_faces: int):

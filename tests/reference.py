@@ -22,6 +22,20 @@ def weld(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, int]:
     return canonical[faces], len(vertices) - len(first)
 
 
+def circumsphere_radius(u: np.ndarray, v: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Radius of the sphere through 0, u, v, w (rows); inf where they are coplanar."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        det = np.einsum("ij,ij->i", u, np.cross(v, w))
+        centre = (
+            (u * u).sum(1)[:, None] * np.cross(v, w)
+            + (v * v).sum(1)[:, None] * np.cross(w, u)
+            + (w * w).sum(1)[:, None] * np.cross(u, v)
+        ) / (2.0 * det[:, None])
+        radius = np.linalg.norm(centre, axis=1)
+    radius[~np.isfinite(radius) | (det == 0)] = np.inf
+    return radius
+
+
 def shape_complexity(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -77,15 +91,8 @@ def shape_complexity(
         | (c == d).all(axis=1)
     )
     flat = ~degenerate & (bending <= FLAT_ANGLE)
+    radius = circumsphere_radius(u, v, w)
     with np.errstate(divide="ignore", invalid="ignore"):
-        det = np.einsum("ij,ij->i", u, np.cross(v, w))
-        centre = (
-            (u * u).sum(1)[:, None] * np.cross(v, w)
-            + (v * v).sum(1)[:, None] * np.cross(w, u)
-            + (w * w).sum(1)[:, None] * np.cross(u, v)
-        ) / (2.0 * det[:, None])
-        radius = np.linalg.norm(centre, axis=1)
-        radius[~np.isfinite(radius) | (det == 0)] = np.inf
 
         def circumcentre(p: np.ndarray, q: np.ndarray, n: np.ndarray) -> np.ndarray:
             return (
