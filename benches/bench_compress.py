@@ -2,8 +2,10 @@
 
 For each mesh and budget, prints the chosen B and V, the measured error and size, the
 number of passes and the seconds spent per phase (K, simplification, Draco encoding with
-decoding, Hausdorff). Meshes: the bundled Spot, tests/data, and ../shared/meshes (the
-871k-face Stanford dragon) when present.
+decoding, Hausdorff), then the sizes of one quantized mesh in the three writers (Draco,
+glTF with KHR_mesh_quantization, quantized PLY) next to the paper's F. Meshes: the
+bundled Spot, tests/data, and ../shared/meshes (the 871k-face Stanford dragon) when
+present.
 
     python benches/bench_compress.py
 """
@@ -18,6 +20,7 @@ import numpy as np
 import trimesh
 
 import meshbits
+from meshbits.encode import encode
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "meshes"
@@ -44,6 +47,28 @@ CASES = [
 ]
 
 
+def formats() -> None:
+    """The same quantized mesh in the three writers, next to the paper's F."""
+    print(
+        "\n| mesh | V | B | model F, alpha = 1, T = 4 (bytes) | Draco (bytes) | GLB (bytes) "
+        "| PLY (bytes) |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for name in ("spot", "bunny.ply"):
+        mesh = meshbits.load_mesh(meshbits.example_mesh_path()) if name == "spot" else load(name)
+        if mesh is None:
+            continue
+        used = len(np.unique(mesh[1]))
+        for bits in (8, 11, 14):
+            sizes = [encode(mesh, bits, format=f).size_bytes for f in ("draco", "glb", "ply")]
+            model_bytes = meshbits.model.file_size(bits, used) / 8
+            print(
+                f"| {name.split('.')[0]} | {used:,} | {bits} | {model_bytes:,.0f} | "
+                + " | ".join(f"{size:,}" for size in sizes)
+                + " |"
+            )
+
+
 def main() -> None:
     print(
         "| mesh | faces | budget | met | B | V | error / S | bytes | passes | K (s) | simplify (s) "
@@ -68,6 +93,7 @@ def main() -> None:
             f"| {t['simplify']:.2f} | {t['encode']:.2f} | {t['hausdorff']:.2f} | {total:.2f} |",
             flush=True,
         )
+    formats()
 
 
 if __name__ == "__main__":

@@ -200,6 +200,17 @@ def test_compress_cli_writes_glb(tmp_path, capsys):
     assert len(trimesh.load(out, force="mesh").faces) > 0
 
 
+def test_compress_cli_size_budget_with_quantized_glb(tmp_path, capsys):
+    out = tmp_path / "spot.glb"
+    argv = ["compress", str(meshbits.example_mesh_path()), "--size", "20KB", "-o", str(out)]
+    assert main([*argv, "--json", "--quiet"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["format"] == "glb" and report["met"]
+    assert out.stat().st_size == report["size_bytes"] <= 20_000
+    loaded = trimesh.load(out, force="mesh", process=False)
+    assert len(loaded.vertices) == report["vertices"]
+
+
 def test_compress_cli_exit_1_when_unmet(capsys):
     code = main(
         [
@@ -222,7 +233,7 @@ def test_compress_cli_exit_1_when_unmet(capsys):
     [
         ["compress", str(DATA / "missing.ply"), "--error", "0.1"],
         ["compress", str(DATA / "bunny.ply"), "--size", "100"],
-        ["compress", str(DATA / "bunny.ply"), "--size", "100KB", "-o", "x.glb"],
+        ["compress", str(DATA / "bunny.ply"), "--size", "100KB", "-o", "x.obj"],
         ["compress", str(DATA / "bunny.ply"), "--error", "0.1", "-o", "x.gif"],
         ["compress", str(DATA / "bunny.ply"), "--vertices", "100", "--relative"],
     ],

@@ -8,6 +8,7 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import meshbits
 from meshbits.encode import encode_draco, encode_quantized_ply, fit_size_model
 from meshbits.simplify import closest_level, referenced_vertex_count, simplify
 
@@ -93,3 +94,34 @@ def test_closest_level_on_a_log_scale():
     assert closest_level(levels, 10**6) == 3
     with pytest.raises(ValueError, match="lods is empty"):
         closest_level([], 100)
+
+
+@pytest.mark.parametrize("bits", [1, 6, 8, 9, 12, 16])
+def test_quantized_glb_decodes_in_trimesh_to_the_grid(bits):
+    import io
+
+    from meshbits import quantize
+    from meshbits.encode import encode_quantized_glb
+
+    mesh = trimesh.load(meshbits.example_mesh_path(), process=False)
+    vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    encoded = encode_quantized_glb((vertices, faces), bits)
+    # An independent reader: trimesh applies the node's translation and scale.
+    loaded = trimesh.load(io.BytesIO(encoded.data), file_type="glb", force="mesh", process=False)
+    np.testing.assert_array_equal(np.asarray(loaded.faces), encoded.faces)
+    np.testing.assert_allclose(np.asarray(loaded.vertices), encoded.vertices, rtol=0, atol=1e-6)
+    # Every vertex is referenced in spot, so the order is the input's: positions are the
+    # grid positions of meshbits.quantize, up to float32.
+    grid = quantize(vertices, bits).positions
+    np.testing.assert_allclose(encoded.vertices, grid, rtol=0, atol=1e-6)
+    stride = 4 if bits <= 8 else 8
+    index_bytes = 2 if len(vertices) < 65536 else 4
+    payload = len(vertices) * stride + faces.size * index_bytes
+    assert payload < encoded.size_bytes < payload + 2048
+
+
+def test_quantized_glb_refuses_more_than_16_bits():
+    from meshbits.encode import encode_quantized_glb
+
+    with pytest.raises(ValueError, match="1 to 16"):
+        encode_quantized_glb(trimesh.creation.icosphere(1), 17)

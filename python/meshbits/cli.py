@@ -122,8 +122,8 @@ def _run_demo(args: argparse.Namespace) -> int:
     return _run_compress(args)
 
 
-_FORMATS = {".drc": "draco", ".ply": "ply"}
-_TRIMESH_FORMATS = (".glb", ".gltf", ".obj", ".off", ".stl")
+_FORMATS = {".drc": "draco", ".glb": "glb", ".ply": "ply"}
+_TRIMESH_FORMATS = (".gltf", ".obj", ".off", ".stl")
 
 
 def _add_compress(sub: argparse._SubParsersAction) -> None:
@@ -148,8 +148,9 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
         "-o",
         "--output",
         type=Path,
-        help="output file: .drc (Draco), .ply (quantized PLY); .glb/.obj/.off/.stl through "
-        "trimesh (not with --size: their size is not what the loop measures)",
+        help="output file: .drc (Draco), .glb (glTF, quantized positions), .ply (quantized "
+        "PLY); .gltf/.obj/.off/.stl through trimesh (not with --size: their size is not what "
+        "the loop measures)",
     )
     p.add_argument("--lods", type=Path, nargs="+", help="levels of detail to pick from")
     p.add_argument("--alpha", type=float, help="size model alpha (default: fitted to Draco)")
@@ -178,9 +179,13 @@ def _run_compress(args: argparse.Namespace) -> int:
     output = args.output
     suffix = output.suffix.lower() if output else ".drc"
     if suffix not in _FORMATS and suffix not in _TRIMESH_FORMATS:
-        raise UserError(f"cannot write {output}: use .drc, .ply, " + ", ".join(_TRIMESH_FORMATS))
+        raise UserError(
+            f"cannot write {output}: use .drc, .glb, .ply, " + ", ".join(_TRIMESH_FORMATS)
+        )
     if suffix in _TRIMESH_FORMATS and args.size is not None:
-        raise UserError(f"--size needs a .drc or .ply output; {suffix} sizes are not measured")
+        raise UserError(
+            f"--size needs a .drc, .glb or .ply output; {suffix} sizes are not measured"
+        )
     size = parse_size(args.size) if args.size is not None else None
     mesh = load_mesh(args.mesh)
     lods = [load_mesh(path) for path in args.lods] if args.lods else None

@@ -299,8 +299,11 @@ def compress(
         ``simplifier(vertices, faces, target_vertices) -> (vertices, faces)``; default
         :func:`meshbits.simplify.simplify` (fast-simplification).
     format
-        ``"draco"`` (default; DracoPy, ``quantization_bits=B`` on the paper's grid) or
-        ``"ply"`` (positions quantized, stored as float32).
+        ``"draco"`` (default; DracoPy, ``quantization_bits=B`` on the paper's grid),
+        ``"glb"`` (glTF with integer positions, KHR_mesh_quantization, B <= 16) or
+        ``"ply"`` (positions quantized, stored as float32). The size model's defaults are
+        fitted to Draco: pass ``alpha`` and ``connectivity_bits`` for the others, or let
+        the loop correct the size.
     alpha, connectivity_bits
         The size model's alpha and T (Eq. 1). The defaults are fitted to Draco at
         compression level 7 (see :func:`meshbits.encode.fit_size_model` and
@@ -334,8 +337,8 @@ def compress(
     constraint = given[0]
     if max_iterations < 1:
         raise ValueError(f"max_iterations must be at least 1, got {max_iterations}")
-    if format not in ("draco", "ply"):
-        raise ValueError(f"format must be 'draco' or 'ply', got {format!r}")
+    if format not in ("draco", "glb", "ply"):
+        raise ValueError(f"format must be 'draco', 'glb' or 'ply', got {format!r}")
     original = _weld(as_mesh(mesh))
     seconds = {"complexity": 0.0, "simplify": 0.0, "encode": 0.0, "hausdorff": 0.0}
 

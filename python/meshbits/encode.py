@@ -1,4 +1,5 @@
-"""Real compressed output: Draco (through DracoPy) and quantized PLY, with measured sizes.
+"""Real compressed output: Draco (through DracoPy), quantized glTF (GLB with
+KHR_mesh_quantization, through pygltflib) and quantized PLY, with measured sizes.
 
 The model's file size ``F = (3 alpha B + T) V`` (paper Eq. 1) is only as good as its alpha
 and T: :func:`fit_size_model` fits them to measured encodings, and :func:`calibrate` runs
@@ -24,12 +25,13 @@ __all__ = [
     "decode_draco",
     "encode",
     "encode_draco",
+    "encode_quantized_glb",
     "encode_quantized_ply",
     "fit_size_model",
 ]
 
 #: Output formats by file extension.
-ENCODERS = {".drc": "draco", ".ply": "ply"}
+ENCODERS = {".drc": "draco", ".glb": "glb", ".ply": "ply"}
 
 
 @dataclass(frozen=True)
@@ -39,7 +41,7 @@ class Encoded:
     Attributes
     ----------
     format : str
-        ``"draco"`` or ``"ply"``.
+        ``"draco"``, ``"glb"`` or ``"ply"``.
     data : bytes
         The file's bytes.
     bits : int
@@ -149,13 +151,110 @@ def encode_quantized_ply(
     return Encoded("ply", data, bits, positions.astype(np.float64), faces.astype(np.int64))
 
 
+def _padded(data: bytes) -> bytes:
+    return data + b"\0" * (-len(data) % 4)
+
+
+def encode_quantized_glb(
+    mesh: MeshLike, bits: int, *, origin: Any = None, grid_size: float | None = None
+) -> Encoded:
+    """Binary glTF 2.0 (GLB) with positions stored as their integer grid codes.
+
+    The glTF route to quantized positions, as gltfpack writes it: the extension
+    ``KHR_mesh_quantization`` (required by the file) lets ``POSITION`` be unsigned bytes
+    (``bits <= 8``) or unsigned shorts (``bits <= 16``), not normalized, holding the corner
+    codes of :func:`meshbits.quantize` on the cube grid; the mesh's node carries
+    ``translation = origin`` and ``scale = step`` (``grid_size / (2^B - 1)``) so that a
+    viewer places ``origin + code * step``. Each vertex takes 4 (bytes) or 8 (shorts)
+    bytes, padded to glTF's 4-byte alignment; indices are unsigned shorts below 65,536
+    vertices, else unsigned ints. No entropy coding: the size is ``~ V * stride + 3 * F *
+    index_size`` plus a small JSON header. Unreferenced vertices are dropped.
+
+    The returned ``vertices`` are what a float32 viewer computes, ``float32(origin) +
+    float32(step) * code``, in float64.
+    """
+    import pygltflib as gl
+
+    vertices, faces = as_mesh(mesh)
+    bits = _check_bits(bits, 16)
+    used, inverse = np.unique(faces.ravel(), return_inverse=True)
+    vertices, faces = vertices[used], inverse.reshape(-1, 3)
+    lo, size = _grid(vertices, origin, grid_size)
+    q = quantize(vertices, bits, box=(lo, lo + size))
+    codes = np.asarray(q.codes, dtype=np.uint16)
+    if bits <= 8:
+        component, stride = gl.UNSIGNED_BYTE, 4
+        packed = np.zeros((len(codes), 4), dtype=np.uint8)
+    else:
+        component, stride = gl.UNSIGNED_SHORT, 8
+        packed = np.zeros((len(codes), 4), dtype="<u2")
+    packed[:, :3] = codes
+    if len(codes) < 65536:
+        index_component, index_data = gl.UNSIGNED_SHORT, faces.astype("<u2").tobytes()
+    else:
+        index_component, index_data = gl.UNSIGNED_INT, faces.astype("<u4").tobytes()
+    index_data, position_data = _padded(index_data), packed.tobytes()
+    step = float(q.step[0])
+    gltf = gl.GLTF2(
+        asset=gl.Asset(generator=f"meshbits, {bits} bits per coordinate"),
+        extensionsUsed=["KHR_mesh_quantization"],
+        extensionsRequired=["KHR_mesh_quantization"],
+        scene=0,
+        scenes=[gl.Scene(nodes=[0])],
+        nodes=[gl.Node(mesh=0, translation=[float(x) for x in lo], scale=[step, step, step])],
+        meshes=[
+            gl.Mesh(primitives=[gl.Primitive(attributes=gl.Attributes(POSITION=1), indices=0)])
+        ],
+        accessors=[
+            gl.Accessor(
+                bufferView=0,
+                componentType=index_component,
+                count=faces.size,
+                type=gl.SCALAR,
+                min=[int(faces.min())],
+                max=[int(faces.max())],
+            ),
+            gl.Accessor(
+                bufferView=1,
+                componentType=component,
+                count=len(codes),
+                type=gl.VEC3,
+                min=[int(x) for x in codes.min(axis=0)],
+                max=[int(x) for x in codes.max(axis=0)],
+            ),
+        ],
+        bufferViews=[
+            gl.BufferView(
+                buffer=0,
+                byteOffset=0,
+                byteLength=faces.size * (2 if len(codes) < 65536 else 4),
+                target=gl.ELEMENT_ARRAY_BUFFER,
+            ),
+            gl.BufferView(
+                buffer=0,
+                byteOffset=len(index_data),
+                byteLength=len(position_data),
+                byteStride=stride,
+                target=gl.ARRAY_BUFFER,
+            ),
+        ],
+        buffers=[gl.Buffer(byteLength=len(index_data) + len(position_data))],
+    )
+    gltf.set_binary_blob(index_data + position_data)
+    data = b"".join(gltf.save_to_bytes())
+    decoded = np.float32(lo) + np.float32(step) * codes.astype(np.float32)
+    return Encoded("glb", data, bits, decoded.astype(np.float64), faces.astype(np.int64))
+
+
 def encode(mesh: MeshLike, bits: int, *, format: str = "draco", **grid: Any) -> Encoded:
-    """Encode in ``format`` (``"draco"`` or ``"ply"``)."""
+    """Encode in ``format``: ``"draco"``, ``"glb"`` (quantized glTF) or ``"ply"``."""
     if format == "draco":
         return encode_draco(mesh, bits, **grid)
+    if format == "glb":
+        return encode_quantized_glb(mesh, bits, **grid)
     if format == "ply":
         return encode_quantized_ply(mesh, bits, **grid)
-    raise ValueError(f"format must be 'draco' or 'ply', got {format!r}")
+    raise ValueError(f"format must be 'draco', 'glb' or 'ply', got {format!r}")
 
 
 @dataclass(frozen=True)
