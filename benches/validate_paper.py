@@ -319,7 +319,7 @@ def _figure(width: int = 900, height: int = 600) -> Any:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width / 100, height / 100), dpi=100)
+    fig = Figure(figsize=(width / 100, height / 100), dpi=100, layout="constrained")
     FigureCanvasAgg(fig)
     return fig
 
@@ -997,6 +997,10 @@ def _grid_figure(out, grids, ks) -> None:
         ax.set_xlabel("B")
         ax.set_ylabel("E / S")
         ax.legend(fontsize=6)
+    fig.suptitle(
+        "measured symmetric Hausdorff: max (solid), mean (dotted); model E(B, V) (dashed)",
+        fontsize=10,
+    )
     fig.savefig(out / "validation_meshes.png", dpi=100)
 
 
