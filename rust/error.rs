@@ -63,6 +63,26 @@ pub fn check_finite(vertices: &[[f64; 3]]) -> Result<(), MeshError> {
     }
 }
 
+/// Signed 64-bit face indices (numpy's default integer, trimesh's face dtype) as `u32`,
+/// in one parallel pass; `None` when an index lies outside `0..vertex_count` (the caller
+/// then names the offending face) or `vertex_count` does not fit a `u32`.
+#[must_use]
+pub fn indices_from_i64(faces: &[[i64; 3]], vertex_count: usize) -> Option<Vec<[u32; 3]>> {
+    use rayon::prelude::*;
+    if vertex_count > u32::MAX as usize {
+        return None;
+    }
+    let limit = i64::try_from(vertex_count).ok()?;
+    faces
+        .par_iter()
+        .with_min_len(1 << 14)
+        .map(|t| {
+            let ok = t.iter().all(|&i| (0..limit).contains(&i));
+            ok.then(|| t.map(|i| i as u32))
+        })
+        .collect()
+}
+
 /// Checks that every face index is `< vertex_count`; names the first offending face.
 pub fn check_indices(faces: &[[u32; 3]], vertex_count: usize) -> Result<(), MeshError> {
     for (face, tri) in faces.iter().enumerate() {
@@ -77,4 +97,22 @@ pub fn check_indices(faces: &[[u32; 3]], vertex_count: usize) -> Result<(), Mesh
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn i64_indices_convert_or_refuse() {
+        let faces = [[0i64, 1, 2], [2, 3, 0]];
+        assert_eq!(
+            indices_from_i64(&faces, 4),
+            Some(vec![[0u32, 1, 2], [2, 3, 0]])
+        );
+        assert_eq!(indices_from_i64(&faces, 3), None);
+        assert_eq!(indices_from_i64(&[[0, -1, 2]], 4), None);
+        assert_eq!(indices_from_i64(&[[0, 1, 1 << 40]], 4), None);
+        assert_eq!(indices_from_i64(&[[0, 1, 2]], u32::MAX as usize + 1), None);
+    }
 }

@@ -548,6 +548,21 @@ fn cluster<'py>(
     Ok(out)
 }
 
+/// `(m, 3)` int64 faces as C-ordered uint32, checked against `vertex_count` in one
+/// parallel pass; `None` when an index is out of range (Python names the face).
+#[pyfunction]
+fn faces_as_u32<'py>(
+    py: Python<'py>,
+    faces: PyReadonlyArray2<'py, i64>,
+    vertex_count: usize,
+) -> PyResult<Option<Bound<'py, PyArray2<u32>>>> {
+    let f = triples(&faces, "faces")?;
+    let converted = py.detach(|| crate::error::indices_from_i64(f, vertex_count));
+    converted
+        .map(|rows_u32| rows(py, rows_u32.into_flattened()))
+        .transpose()
+}
+
 /// Sets the number of worker threads for every kernel (0 restores rayon's default pool).
 #[pyfunction]
 fn set_num_threads(threads: usize) {
@@ -581,6 +596,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(quantize, m)?)?;
     m.add_function(wrap_pyfunction!(dequantize, m)?)?;
     m.add_function(wrap_pyfunction!(cluster, m)?)?;
+    m.add_function(wrap_pyfunction!(faces_as_u32, m)?)?;
     m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(get_num_threads, m)?)?;
     Ok(())

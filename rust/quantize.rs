@@ -30,8 +30,9 @@
 //! Output order, independent of the thread count: new vertices in order of the smallest
 //! input index of their cluster; kept faces in input order.
 //!
-//! Vertices are grouped by a stable LSD radix sort of their packed codes (O(n B), no
-//! hashing); a pass in vertex order numbers the groups by their smallest vertex index.
+//! Vertices are grouped by their packed codes: for `B <= 21` by partitioning on a hash
+//! and small per-partition hash tables, above by a stable LSD radix sort; either way the
+//! groups are numbered by their smallest vertex index.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -57,6 +58,9 @@ const FACE_CHUNK: usize = 1 << 14;
 /// Marks a dropped face in the first corner of its remapped triple (vertex counts are
 /// below `u32::MAX`, so no vertex has this index).
 const DROPPED: u32 = u32::MAX;
+
+/// Largest `B` whose packed key `x << 2B | y << B | z` fits a `u64`.
+const MAX_KEY_BITS: u32 = 21;
 
 /// How the step is chosen from the box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -296,6 +300,27 @@ impl Grid {
             return Err(self.refusal(points));
         }
         Ok(codes)
+    }
+
+    /// Packed corner codes `x << 2B | y << B | z` of `points`, for `B <= 21` (the key fits
+    /// a `u64`); refuses like [`Grid::codes`].
+    pub fn keys(&self, points: &[[f64; 3]]) -> Result<Vec<u64>, MeshError> {
+        debug_assert!(self.bits <= MAX_KEY_BITS);
+        let outside = AtomicBool::new(false);
+        let keys: Vec<u64> = points
+            .par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|p| {
+                if !self.contains(p) {
+                    outside.store(true, Ordering::Relaxed);
+                }
+                u64::pack(self.code(p), self.bits)
+            })
+            .collect();
+        if outside.into_inner() {
+            return Err(self.refusal(points));
+        }
+        Ok(keys)
     }
 
     /// The error for points that failed [`Grid::contains`]: the first non-finite
@@ -569,19 +594,184 @@ fn group_keys<K: PackedCode>(keys: Vec<K>, bits: u32) -> Clusters {
     Clusters { id, first, code }
 }
 
+/// Fibonacci hashing: the top bits of `key * 2^64 / golden ratio` spread nearby grid codes
+/// over the whole range.
+#[inline]
+fn spread(key: u64) -> u64 {
+    key.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+/// Keys per partition that [`group_keys_partitioned`] aims at: its hash table (twice as
+/// many slots of 16 bytes) then stays in a core's L2 cache.
+const PARTITION_TARGET: usize = 8192;
+
+/// A slice that several threads write at disjoint indices.
+#[derive(Clone, Copy)]
+struct DisjointWrites<T>(*mut T, usize);
+
+// SAFETY: only used for writes at indices that no two threads share (see the callers).
+unsafe impl<T: Send> Send for DisjointWrites<T> {}
+// SAFETY: as above.
+unsafe impl<T: Send> Sync for DisjointWrites<T> {}
+
+impl<T> DisjointWrites<T> {
+    fn new(slice: &mut [T]) -> Self {
+        Self(slice.as_mut_ptr(), slice.len())
+    }
+
+    /// # Safety
+    /// No other thread writes or reads index `i` while the slice is shared.
+    #[inline]
+    unsafe fn write(self, i: usize, value: T) {
+        assert!(i < self.1, "index {i} out of bounds {}", self.1);
+        // SAFETY: in bounds (checked), and exclusive by the caller's contract.
+        unsafe { self.0.add(i).write(value) }
+    }
+}
+
+/// Groups packed keys in three cache-friendly passes:
+///
+/// 1. a stable counting sort on the top bits of [`spread`] splits the vertices into
+///    partitions of about [`PARTITION_TARGET`] keys, equal keys in the same partition in
+///    ascending vertex order (chunks of the input scatter in parallel, each at offsets
+///    fixed by the counts of the chunks before it);
+/// 2. each partition, in parallel, finds with a small open-addressing table the first
+///    vertex `rep[i] <= i` that has vertex `i`'s key;
+/// 3. one pass in vertex order numbers the vertices with `rep[i] == i` (the first of
+///    their cluster) and gives every other vertex its first's id.
+///
+/// Clusters come numbered by their smallest vertex index; nothing depends on the thread
+/// count.
+fn group_keys_partitioned(keys: &[u64], bits: u32) -> Clusters {
+    let n = keys.len();
+    let part_bits = (n / PARTITION_TARGET)
+        .max(1)
+        .next_power_of_two()
+        .trailing_zeros();
+    let parts = 1usize << part_bits;
+    let part_of = |k: u64| {
+        if part_bits == 0 {
+            0
+        } else {
+            (spread(k) >> (64 - part_bits)) as usize
+        }
+    };
+    let chunk_counts: Vec<Vec<u32>> = keys
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let mut count = vec![0u32; parts];
+            for &k in chunk {
+                count[part_of(k)] += 1;
+            }
+            count
+        })
+        .collect();
+    let mut start = vec![0usize; parts + 1];
+    for count in &chunk_counts {
+        for (p, &c) in count.iter().enumerate() {
+            start[p + 1] += c as usize;
+        }
+    }
+    for p in 0..parts {
+        start[p + 1] += start[p];
+    }
+    let mut chunk_offsets = Vec::with_capacity(chunk_counts.len());
+    let mut cursor = start[..parts].to_vec();
+    for count in &chunk_counts {
+        chunk_offsets.push(cursor.clone());
+        for (c, &k) in cursor.iter_mut().zip(count) {
+            *c += k as usize;
+        }
+    }
+    let mut sorted = vec![(0u64, 0u32); n];
+    let out = DisjointWrites::new(&mut sorted);
+    keys.par_chunks(CHUNK)
+        .zip(chunk_offsets)
+        .enumerate()
+        .for_each(|(chunk_no, (chunk, mut offset))| {
+            for (j, &k) in chunk.iter().enumerate() {
+                let p = part_of(k);
+                // SAFETY: chunk `c` writes partition `p` at
+                // `[offset[c][p], offset[c][p] + count[c][p])`; these ranges are disjoint.
+                unsafe { out.write(offset[p], (k, (chunk_no * CHUNK + j) as u32)) };
+                offset[p] += 1;
+            }
+        });
+    let mut rep = vec![0u32; n];
+    let rep_out = DisjointWrites::new(&mut rep);
+    (0..parts).into_par_iter().for_each(|p| {
+        let part = &sorted[start[p]..start[p + 1]];
+        let slots = (2 * part.len()).next_power_of_two().max(8);
+        let mask = slots - 1;
+        let shift = 64 - slots.trailing_zeros();
+        // (key, first vertex + 1); 0 marks an empty slot.
+        let mut table = vec![(0u64, 0u32); slots];
+        for &(k, i) in part {
+            let mut s = ((spread(k) << part_bits) >> shift) as usize;
+            let first = loop {
+                let (key, first) = table[s];
+                if first == 0 {
+                    table[s] = (k, i + 1);
+                    break i;
+                }
+                if key == k {
+                    break first - 1;
+                }
+                s = (s + 1) & mask;
+            };
+            // SAFETY: every vertex index appears in exactly one entry of `sorted`.
+            unsafe { rep_out.write(i as usize, first) };
+        }
+    });
+    drop(sorted);
+    let mut id = rep;
+    let mut first = Vec::new();
+    let mut code = Vec::new();
+    for i in 0..n {
+        let r = id[i] as usize;
+        id[i] = if r == i {
+            first.push(i as u32);
+            code.push(keys[i].unpack(bits));
+            (first.len() - 1) as u32
+        } else {
+            id[r]
+        };
+    }
+    Clusters { id, first, code }
+}
+
 /// Quantizes `points` on `grid` and groups them by code; refuses like [`Grid::codes`].
 ///
-/// The codes are packed into one integer key each and sorted with a stable LSD radix
-/// sort (O(n B), no hashing, no worst case); a pass in vertex order then numbers the runs
-/// of equal keys by their smallest vertex index. Deterministic for any thread count.
+/// For `B <= 21` the packed codes are grouped by [`group_keys_partitioned`] (expected
+/// O(n)); above, by a stable LSD radix sort of 128-bit keys (O(n B)) and a pass in vertex
+/// order. Clusters are numbered by their smallest vertex index, for any thread count.
 pub fn group_points(points: &[[f64; 3]], grid: &Grid) -> Result<Clusters, MeshError> {
-    Ok(group_codes(&grid.codes(points)?, grid.bits))
+    if grid.bits <= MAX_KEY_BITS {
+        Ok(group_keys_partitioned(&grid.keys(points)?, grid.bits))
+    } else {
+        Ok(group_codes_sorted(&grid.codes(points)?, grid.bits))
+    }
 }
 
 /// Groups vertices by code (see [`group_points`]).
 #[must_use]
 pub fn group_codes(codes: &[[u32; 3]], bits: u32) -> Clusters {
     debug_assert!((1..=MAX_BITS).contains(&bits));
+    if bits <= MAX_KEY_BITS {
+        let keys: Vec<u64> = codes
+            .par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|&q| u64::pack(q, bits))
+            .collect();
+        group_keys_partitioned(&keys, bits)
+    } else {
+        group_codes_sorted(codes, bits)
+    }
+}
+
+/// Groups vertices by code with the radix sort of [`group_keys`] (any `bits`; the path
+/// for `B > 21`, whose keys need 128 bits).
+fn group_codes_sorted(codes: &[[u32; 3]], bits: u32) -> Clusters {
     fn packed<K: PackedCode>(codes: &[[u32; 3]], bits: u32) -> Clusters {
         group_keys(
             codes
@@ -806,19 +996,31 @@ pub fn cluster(
             });
     }
 
-    let vertex_map: Vec<i64> = id
-        .par_iter()
-        .with_min_len(MIN_LEN)
-        .map(|&c| match new_id[c as usize] {
-            DROPPED => -1,
-            k => i64::from(k),
-        })
-        .collect();
-    let out_codes: Vec<[u32; 3]> = kept
-        .par_iter()
-        .with_min_len(MIN_LEN)
-        .map(|&c| clusters.code[c as usize])
-        .collect();
+    let every_cluster_kept = kept.len() == clusters.count();
+    let vertex_map: Vec<i64> = if every_cluster_kept {
+        id.par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|&c| i64::from(c))
+            .collect()
+    } else {
+        id.par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|&c| match new_id[c as usize] {
+                DROPPED => -1,
+                k => i64::from(k),
+            })
+            .collect()
+    };
+    let merged_vertices = n - clusters.count();
+    let unreferenced_vertices = clusters.count() - kept.len();
+    let out_codes: Vec<[u32; 3]> = if every_cluster_kept {
+        clusters.code
+    } else {
+        kept.par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|&c| clusters.code[c as usize])
+            .collect()
+    };
     let out_vertices: Vec<[f64; 3]> = out_codes
         .par_iter()
         .with_min_len(MIN_LEN)
@@ -838,8 +1040,8 @@ pub fn cluster(
         .reduce(|| 0.0, f64::max);
 
     Ok(Clustering {
-        merged_vertices: n - clusters.count(),
-        unreferenced_vertices: clusters.count() - kept.len(),
+        merged_vertices,
+        unreferenced_vertices,
         degenerate_faces,
         duplicate_faces,
         max_displacement,
@@ -1027,6 +1229,29 @@ mod tests {
                 clusters.first, firsts,
                 "clusters must be numbered by first vertex"
             );
+            let sorted = group_codes_sorted(&codes, bits);
+            assert_eq!(
+                (&sorted.id, &sorted.first, &sorted.code),
+                (&clusters.id, &clusters.first, &clusters.code),
+                "partitioned and radix grouping must agree (bits={bits})"
+            );
+        }
+    }
+
+    #[test]
+    fn partitioned_grouping_matches_the_radix_sort_on_many_chunks_and_partitions() {
+        let mut rng = Mix(11);
+        // 300k vertices: 5 input chunks, 32 partitions; few and many repeats.
+        for (bits, range) in [(8u32, 0x3fu64), (16, 0xffff), (21, 0x1f_ffff)] {
+            let codes: Vec<[u32; 3]> = (0..300_000)
+                .map(|_| [0, 1, 2].map(|_| ((rng.next() & range) as u32) & max_code(bits)))
+                .collect();
+            let fast = group_codes(&codes, bits);
+            let sorted = group_codes_sorted(&codes, bits);
+            assert!(fast.count() > 1 && fast.count() <= codes.len());
+            assert_eq!(fast.id, sorted.id, "bits={bits}");
+            assert_eq!(fast.first, sorted.first, "bits={bits}");
+            assert_eq!(fast.code, sorted.code, "bits={bits}");
         }
     }
 

@@ -69,6 +69,9 @@ def dequantize(
     origin: tuple[float, float, float],
     step: tuple[float, float, float],
 ) -> npt.NDArray[np.float64]: ...
+def faces_as_u32(
+    faces: npt.NDArray[np.int64], vertex_count: int
+) -> npt.NDArray[np.uint32] | None: ...
 def cluster(
     vertices: npt.NDArray[np.float64],
     faces: npt.NDArray[np.uint32],

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from . import _core
+
 __all__ = ["MeshLike", "as_mesh", "as_points"]
 
 #: A ``trimesh.Trimesh``, a ``(vertices, faces)`` pair, or any object with ``vertices`` and
@@ -63,6 +65,10 @@ def _as_faces(faces: Any, vertex_count: int) -> np.ndarray:
         raise ValueError(f"faces must have shape (m, 3) (triangles), got {array.shape}")
     if len(array) == 0:
         raise ValueError("mesh is empty: faces has no rows")
+    if array.dtype == np.int64 and array.flags.c_contiguous:
+        converted = _core.faces_as_u32(array, vertex_count)
+        if converted is not None:
+            return converted
     low, high = int(array.min()), int(array.max())
     if low < 0:
         row = int(np.flatnonzero((array < 0).any(axis=1))[0])
