@@ -132,12 +132,37 @@ def error_surface(
     e_levels = _decades(err, halves=True)
     filled = ax.contourf(vv, bb, np.log10(err), levels=64, cmap="viridis_r")
     lines = ax.contour(vv, bb, err, levels=e_levels, colors="black", linewidths=0.8)
-    ax.clabel(lines, fmt=lambda x: f"E={x:.0e}", fontsize=7)
+    # Labels apart from each other: iso-error labels near the right edge, where those
+    # curves run flat; iso-size labels low in the plot, where those run steep.
+    v_error_labels = v_lo * (v_hi / v_lo) ** 0.88
+    error_column = np.asarray(model.error(b, v_error_labels, k, grid_size))
+    b_top_labels = b_hi - 0.06 * (b_hi - b_lo)
+    error_row = np.asarray(model.error(b_top_labels, v, k, grid_size))
+    error_label_at = []
+    for level in lines.levels:
+        b_at = float(np.interp(-np.log(level), -np.log(error_column), b))
+        if b_at < b_top_labels:
+            error_label_at.append((v_error_labels, b_at))
+        else:  # the curve turns below the top edge left of the column: label it there
+            log_v = np.interp(-np.log(level), -np.log(error_row), np.log(v))
+            error_label_at.append((float(np.exp(log_v)), b_top_labels))
+    ax.clabel(lines, fmt=lambda x: f"E={x:.0e}", fontsize=7, manual=error_label_at)
     f_levels = _decades(size, halves=False)
     size_lines = ax.contour(
         vv, bb, size, levels=f_levels, colors="white", linewidths=0.9, linestyles="dashed"
     )
-    ax.clabel(size_lines, fmt=lambda x: f"F={x:.0e} b", fontsize=7, colors="white")
+    b_size_labels = b_lo + 0.12 * (b_hi - b_lo)
+    size_label_at = [
+        (level / (3 * alpha * b_size_labels + connectivity_bits), b_size_labels)
+        for level in size_lines.levels
+    ]
+    ax.clabel(
+        size_lines,
+        fmt=lambda x: f"F={x:.0e} b",
+        fontsize=7,
+        colors="white",
+        manual=[(x, y) for x, y in size_label_at if v_lo < x < v_hi],
+    )
     inside = (ridge >= b_lo) & (ridge <= b_hi)
     ax.plot(v[inside], ridge[inside], color="red", linewidth=2.0, label="optimal B(V) (Eq. 12)")
     for pv, pb, label in points:
