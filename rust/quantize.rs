@@ -285,42 +285,38 @@ impl Grid {
     /// Corner codes of `points`; refuses NaN/infinite coordinates, then points outside
     /// the box, naming the first offending point.
     pub fn codes(&self, points: &[[f64; 3]]) -> Result<Vec<[u32; 3]>, MeshError> {
-        let outside = AtomicBool::new(false);
-        let codes: Vec<[u32; 3]> = points
-            .par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|p| {
-                if !self.contains(p) {
-                    outside.store(true, Ordering::Relaxed);
-                }
-                self.code(p)
-            })
-            .collect();
-        if outside.into_inner() {
-            return Err(self.refusal(points));
-        }
-        Ok(codes)
+        self.map_inside(points, |q| q)
     }
 
     /// Packed corner codes `x << 2B | y << B | z` of `points`, for `B <= 21` (the key fits
     /// a `u64`); refuses like [`Grid::codes`].
     pub fn keys(&self, points: &[[f64; 3]]) -> Result<Vec<u64>, MeshError> {
         debug_assert!(self.bits <= MAX_KEY_BITS);
+        self.map_inside(points, |q| u64::pack(q, self.bits))
+    }
+
+    /// `f(code)` for every point, in one parallel pass that also checks the box; refuses
+    /// like [`Grid::codes`].
+    fn map_inside<T: Send>(
+        &self,
+        points: &[[f64; 3]],
+        f: impl Fn([u32; 3]) -> T + Sync,
+    ) -> Result<Vec<T>, MeshError> {
         let outside = AtomicBool::new(false);
-        let keys: Vec<u64> = points
+        let out: Vec<T> = points
             .par_iter()
             .with_min_len(MIN_LEN)
             .map(|p| {
                 if !self.contains(p) {
                     outside.store(true, Ordering::Relaxed);
                 }
-                u64::pack(self.code(p), self.bits)
+                f(self.code(p))
             })
             .collect();
         if outside.into_inner() {
             return Err(self.refusal(points));
         }
-        Ok(keys)
+        Ok(out)
     }
 
     /// The error for points that failed [`Grid::contains`]: the first non-finite
@@ -996,24 +992,17 @@ pub fn cluster(
             });
     }
 
-    let every_cluster_kept = kept.len() == clusters.count();
-    let vertex_map: Vec<i64> = if every_cluster_kept {
-        id.par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|&c| i64::from(c))
-            .collect()
-    } else {
-        id.par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|&c| match new_id[c as usize] {
-                DROPPED => -1,
-                k => i64::from(k),
-            })
-            .collect()
-    };
+    let vertex_map: Vec<i64> = id
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .map(|&c| match new_id[c as usize] {
+            DROPPED => -1,
+            k => i64::from(k),
+        })
+        .collect();
     let merged_vertices = n - clusters.count();
     let unreferenced_vertices = clusters.count() - kept.len();
-    let out_codes: Vec<[u32; 3]> = if every_cluster_kept {
+    let out_codes: Vec<[u32; 3]> = if unreferenced_vertices == 0 {
         clusters.code
     } else {
         kept.par_iter()

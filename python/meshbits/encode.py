@@ -77,6 +77,12 @@ def _grid(vertices: np.ndarray, origin: Any, grid_size: Any) -> tuple[np.ndarray
     return lo, size
 
 
+def _referenced(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh without its unreferenced vertices (faces reindexed)."""
+    used, inverse = np.unique(faces.ravel(), return_inverse=True)
+    return vertices[used], inverse.reshape(-1, 3)
+
+
 def _check_bits(bits: int, high: int) -> int:
     if not isinstance(bits, (int, np.integer)) or not 1 <= bits <= high:
         raise ValueError(f"bits must be an integer from 1 to {high}, got {bits!r}")
@@ -133,8 +139,7 @@ def encode_quantized_ply(
     accepts); unreferenced vertices dropped."""
     vertices, faces = as_mesh(mesh)
     bits = _check_bits(bits, 24)
-    used, inverse = np.unique(faces.ravel(), return_inverse=True)
-    vertices, faces = vertices[used], inverse.reshape(-1, 3)
+    vertices, faces = _referenced(vertices, faces)
     lo, size = _grid(vertices, origin, grid_size)
     positions = quantize(vertices, bits, box=(lo, lo + size)).positions.astype(np.float32)
     header = (
@@ -177,8 +182,7 @@ def encode_quantized_glb(
 
     vertices, faces = as_mesh(mesh)
     bits = _check_bits(bits, 16)
-    used, inverse = np.unique(faces.ravel(), return_inverse=True)
-    vertices, faces = vertices[used], inverse.reshape(-1, 3)
+    vertices, faces = _referenced(vertices, faces)
     lo, size = _grid(vertices, origin, grid_size)
     q = quantize(vertices, bits, box=(lo, lo + size))
     codes = np.asarray(q.codes, dtype=np.uint16)
@@ -190,10 +194,10 @@ def encode_quantized_glb(
         packed = np.zeros((len(codes), 4), dtype="<u2")
     packed[:, :3] = codes
     if len(codes) < 65536:
-        index_component, index_data = gl.UNSIGNED_SHORT, faces.astype("<u2").tobytes()
+        index_component, indices = gl.UNSIGNED_SHORT, faces.astype("<u2").tobytes()
     else:
-        index_component, index_data = gl.UNSIGNED_INT, faces.astype("<u4").tobytes()
-    index_data, position_data = _padded(index_data), packed.tobytes()
+        index_component, indices = gl.UNSIGNED_INT, faces.astype("<u4").tobytes()
+    index_data, position_data = _padded(indices), packed.tobytes()
     step = float(q.step[0])
     gltf = gl.GLTF2(
         asset=gl.Asset(generator=f"meshbits, {bits} bits per coordinate"),
@@ -227,7 +231,7 @@ def encode_quantized_glb(
             gl.BufferView(
                 buffer=0,
                 byteOffset=0,
-                byteLength=faces.size * (2 if len(codes) < 65536 else 4),
+                byteLength=len(indices),
                 target=gl.ELEMENT_ARRAY_BUFFER,
             ),
             gl.BufferView(
