@@ -12,10 +12,10 @@ pub enum MeshError {
     Shape(String),
     /// A vertex coordinate is NaN or infinite.
     NonFinite { vertex: usize },
-    /// A face refers to a vertex index `>= vertex_count`.
+    /// A face refers to a vertex index outside `0..vertex_count`.
     IndexOutOfRange {
         face: usize,
-        index: u64,
+        index: i64,
         vertex_count: usize,
     },
     /// No vertices or no faces where some are required.
@@ -33,13 +33,17 @@ impl fmt::Display for MeshError {
             MeshError::NonFinite { vertex } => {
                 write!(f, "vertex {vertex} has a NaN or infinite coordinate")
             }
+            MeshError::IndexOutOfRange { face, index, .. } if *index < 0 => {
+                write!(f, "face {face} has a negative vertex index ({index})")
+            }
             MeshError::IndexOutOfRange {
                 face,
                 index,
                 vertex_count,
             } => write!(
                 f,
-                "face {face} refers to vertex {index}, but there are only {vertex_count} vertices"
+                "face {face} refers to vertex {index}, out of range: there are only \
+                 {vertex_count} vertices"
             ),
             MeshError::Empty(msg) => write!(f, "{msg}"),
             MeshError::Parameter(msg) => write!(f, "{msg}"),
@@ -83,14 +87,50 @@ pub fn indices_from_i64(faces: &[[i64; 3]], vertex_count: usize) -> Option<Vec<[
         .collect()
 }
 
-/// Checks that every face index is `< vertex_count`; names the first offending face.
-pub fn check_indices(faces: &[[u32; 3]], vertex_count: usize) -> Result<(), MeshError> {
+/// An integer type that face arrays arrive in: `u32`, or `i64` (numpy's default integer,
+/// trimesh's face dtype) read without a conversion pass.
+pub trait VertexIndex: Copy + Send + Sync {
+    /// The index as `usize`; a negative `i64` becomes a value above any vertex count, so
+    /// one bounds check `index < vertex_count` refuses it too.
+    fn to_usize(self) -> usize;
+    /// The index as given, for error messages.
+    fn to_i64(self) -> i64;
+}
+
+impl VertexIndex for u32 {
+    #[inline]
+    fn to_usize(self) -> usize {
+        self as usize
+    }
+    #[inline]
+    fn to_i64(self) -> i64 {
+        i64::from(self)
+    }
+}
+
+impl VertexIndex for i64 {
+    #[inline]
+    fn to_usize(self) -> usize {
+        usize::try_from(self).unwrap_or(usize::MAX)
+    }
+    #[inline]
+    fn to_i64(self) -> i64 {
+        self
+    }
+}
+
+/// Checks that every face index lies in `0..vertex_count`; names the first offending
+/// face.
+pub fn check_indices<I: VertexIndex>(
+    faces: &[[I; 3]],
+    vertex_count: usize,
+) -> Result<(), MeshError> {
     for (face, tri) in faces.iter().enumerate() {
         for &index in tri {
-            if index as usize >= vertex_count {
+            if index.to_usize() >= vertex_count {
                 return Err(MeshError::IndexOutOfRange {
                     face,
-                    index: u64::from(index),
+                    index: index.to_i64(),
                     vertex_count,
                 });
             }
@@ -114,5 +154,32 @@ mod tests {
         assert_eq!(indices_from_i64(&[[0, -1, 2]], 4), None);
         assert_eq!(indices_from_i64(&[[0, 1, 1 << 40]], 4), None);
         assert_eq!(indices_from_i64(&[[0, 1, 2]], u32::MAX as usize + 1), None);
+    }
+
+    #[test]
+    fn index_checks_name_negative_and_too_large_indices() {
+        assert_eq!(check_indices(&[[0i64, 1, 2], [2, 1, 0]], 3), Ok(()));
+        let negative = check_indices(&[[0i64, 1, 2], [2, -1, 0]], 3).unwrap_err();
+        assert_eq!(
+            negative,
+            MeshError::IndexOutOfRange {
+                face: 1,
+                index: -1,
+                vertex_count: 3
+            }
+        );
+        assert!(negative.to_string().contains("negative vertex index (-1)"));
+        let large = check_indices(&[[0i64, 1, i64::MAX]], 3).unwrap_err();
+        assert!(
+            large
+                .to_string()
+                .contains(&format!("vertex {}, out of range", i64::MAX))
+        );
+        let large = check_indices(&[[0u32, 3, 1]], 3).unwrap_err();
+        assert!(
+            large
+                .to_string()
+                .starts_with("face 0 refers to vertex 3, out of range")
+        );
     }
 }

@@ -17,9 +17,9 @@ use rayon::prelude::*;
 
 use crate::bvh::TriangleTree;
 use crate::complexity::{self, Estimator, Tolerances};
-use crate::error::MeshError;
+use crate::error::{MeshError, VertexIndex};
 use crate::hausdorff::{self, Options};
-use crate::quantize::{Duplicates, Grid, GridKind};
+use crate::quantize::{Clustering, Duplicates, Grid, GridKind};
 use crate::quantize::{
     cluster as cluster_kernel, dequantize as dequantize_kernel, quantize as quantize_kernel,
 };
@@ -502,15 +502,23 @@ fn dequantize<'py>(
     rows(py, positions.into_flattened())
 }
 
+/// Face indices as numpy holds them: uint32, or int64 (numpy's default integer) read in
+/// place by kernels generic over [`VertexIndex`].
+#[derive(FromPyObject)]
+enum FaceArray<'py> {
+    U32(PyReadonlyArray2<'py, u32>),
+    I64(PyReadonlyArray2<'py, i64>),
+}
+
 /// Rossignac-Borrel vertex clustering; returns the new mesh, maps and counts (see
-/// `meshbits.cluster`).
+/// `meshbits.cluster`). `faces` may be uint32 or int64; the kernel checks the indices.
 #[pyfunction]
 #[pyo3(signature = (vertices, faces, bits, grid, box_min, box_max, centered, duplicates))]
 #[allow(clippy::too_many_arguments)]
 fn cluster<'py>(
     py: Python<'py>,
     vertices: PyReadonlyArray2<'py, f64>,
-    faces: PyReadonlyArray2<'py, u32>,
+    faces: FaceArray<'py>,
     bits: u32,
     grid: &str,
     box_min: Option<[f64; 3]>,
@@ -518,15 +526,49 @@ fn cluster<'py>(
     centered: bool,
     duplicates: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    fn run<I: VertexIndex>(
+        py: Python<'_>,
+        v: &[[f64; 3]],
+        f: &[[I; 3]],
+        bits: u32,
+        kind: GridKind,
+        (box_min, box_max): (Option<[f64; 3]>, Option<[f64; 3]>),
+        centered: bool,
+        duplicates: Duplicates,
+    ) -> PyResult<(Grid, Clustering, Codes)> {
+        run_detached(py, || {
+            let grid = make_grid(v, bits, kind, box_min, box_max)?;
+            let mut c = cluster_kernel(v, f, &grid, duplicates)?;
+            let codes = Codes::new(std::mem::take(&mut c.codes), &grid, centered);
+            Ok((grid, c, codes))
+        })
+    }
     let kind = parse_grid(grid)?;
     let duplicates = parse_duplicates(duplicates)?;
-    let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
-    let (grid, mut c, codes) = run_detached(py, || {
-        let grid = make_grid(v, bits, kind, box_min, box_max)?;
-        let mut c = cluster_kernel(v, f, &grid, duplicates)?;
-        let codes = Codes::new(std::mem::take(&mut c.codes), &grid, centered);
-        Ok((grid, c, codes))
-    })?;
+    let v = triples(&vertices, "vertices")?;
+    let bounds = (box_min, box_max);
+    let (grid, mut c, codes) = match &faces {
+        FaceArray::U32(f) => run(
+            py,
+            v,
+            triples(f, "faces")?,
+            bits,
+            kind,
+            bounds,
+            centered,
+            duplicates,
+        )?,
+        FaceArray::I64(f) => run(
+            py,
+            v,
+            triples(f, "faces")?,
+            bits,
+            kind,
+            bounds,
+            centered,
+            duplicates,
+        )?,
+    };
     let out = PyDict::new(py);
     out.set_item("vertices", rows(py, c.vertices.into_flattened())?)?;
     out.set_item(

@@ -34,11 +34,12 @@
 //! and small per-partition hash tables, above by a stable LSD radix sort; either way the
 //! groups are numbered by their smallest vertex index.
 
+use std::mem::MaybeUninit;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
-use crate::error::{MeshError, check_finite, check_indices};
+use crate::error::{MeshError, VertexIndex, check_finite, check_indices};
 
 /// Largest supported bits per coordinate: codes are `u32`.
 pub const MAX_BITS: u32 = 32;
@@ -95,6 +96,8 @@ pub struct Grid {
     pub max: [f64; 3],
     /// Length of one code unit per axis (length); 0 on an axis of zero extent.
     pub step: [f64; 3],
+    /// `1 / step` per axis where that is a normal f64, else 0 (see [`axis_code`]).
+    inv_step: [f64; 3],
 }
 
 /// Refuses bit counts outside `1..=32`.
@@ -116,20 +119,48 @@ pub fn max_code(bits: u32) -> u32 {
     ((1u64 << bits) - 1) as u32
 }
 
-/// One coordinate's code: `round((x - min) / step)`, halves up, clamped to `[0, top]`;
-/// 0 when the step is 0.
+/// Relative distance from `y' = (x - min) * (1 / step)` to a half-integer below which
+/// [`axis_code`] divides instead (see there).
+const RECIPROCAL_SLACK: f64 = 1.0 / (1u64 << 45) as f64;
+
+/// `2^52`: adding and subtracting it rounds an f64 of magnitude below `2^51` to the nearest
+/// integer (ties to even), and `(q + 2^52).to_bits()` holds an integer `0 <= q < 2^32` in
+/// its low 32 bits.
+const ROUNDING_MAGIC: f64 = (1u64 << 52) as f64;
+
+/// One coordinate's code: `round((x - min) / step)` with `y = (x - min) / step` the
+/// correctly rounded f64 quotient, halves up, clamped to `[0, top]`; 0 when the step is 0.
 ///
-/// `y = (x - min) / step` is `>= 0` inside the box and at most about `2^32`, so
-/// `t = trunc(y)` is `floor(y)` and `y - t` is exact: `t + (y - t >= 0.5)` rounds halves
-/// up exactly, without a libm call (`f64::round` is one on baseline x86-64).
+/// A division costs several multiplications and float-to-integer conversions several
+/// instructions, so `y' = (x - min) * inv_step` is tried first, with `inv_step` the f64
+/// value of `1 / step` (0 when that is not a normal number), rounded to the nearest
+/// integer with [`ROUNDING_MAGIC`]. Two roundings separate `y'` from the exact
+/// `(x - min) / step` and one separates `y`, so `|y' - y| <= 3.01 * 2^-53 * y' <
+/// 2^-50 * y'`: unless `y'` lies within [`RECIPROCAL_SLACK`]` * y'` of a half-integer
+/// (where ties and the two quotients could round apart), `y` rounds to the same integer
+/// as `y'`, halves up or to nearest alike. Only those rare points, and the ones outside
+/// the box, take the exact path: `t = trunc(y)` is `floor(y)` for `y >= 0`, and
+/// `t + (y - t >= 0.5)` rounds halves up (`y - t` is exact). The codes are exactly the
+/// division's.
 #[inline]
 #[must_use]
-fn axis_code(x: f64, min: f64, step: f64, top: u32) -> u32 {
+fn axis_code(x: f64, min: f64, step: f64, inv_step: f64, top: u32) -> u32 {
     if step > 0.0 {
-        let y = (x - min) / step;
-        let t = y as u64; // saturating: a negative y (outside the box) gives 0
-        let q = t + u64::from(y - t as f64 >= 0.5);
-        q.min(u64::from(top)) as u32
+        let d = x - min;
+        let fast = d * inv_step;
+        let nearest = (fast + ROUNDING_MAGIC) - ROUNDING_MAGIC;
+        let q = if inv_step > 0.0 && ((fast - nearest).abs() - 0.5).abs() > RECIPROCAL_SLACK * fast
+        {
+            nearest
+        } else {
+            let y = d / step;
+            let t = y as i64; // saturating; negative y (outside the box) clamps to 0 below
+            t.saturating_add(i64::from(y - t as f64 >= 0.5)) as f64
+        };
+        let top = f64::from(top);
+        let q = if q > top { top } else { q };
+        let q = if q > 0.0 { q } else { 0.0 };
+        (q + ROUNDING_MAGIC).to_bits() as u32
     } else {
         0
     }
@@ -182,11 +213,16 @@ impl Grid {
                 )));
             }
         }
+        let inv_step = step.map(|s| {
+            let inv = 1.0 / s;
+            if inv.is_normal() { inv } else { 0.0 }
+        });
         Ok(Grid {
             bits,
             min,
             max,
             step,
+            inv_step,
         })
     }
 
@@ -254,11 +290,11 @@ impl Grid {
     #[inline]
     #[must_use]
     pub fn code(&self, p: &[f64; 3]) -> [u32; 3] {
-        let (top, m, s) = (self.max_code(), &self.min, &self.step);
+        let (top, m, s, r) = (self.max_code(), &self.min, &self.step, &self.inv_step);
         [
-            axis_code(p[0], m[0], s[0], top),
-            axis_code(p[1], m[1], s[1], top),
-            axis_code(p[2], m[2], s[2], top),
+            axis_code(p[0], m[0], s[0], r[0], top),
+            axis_code(p[1], m[1], s[1], r[1], top),
+            axis_code(p[2], m[2], s[2], r[2], top),
         ]
     }
 
@@ -282,41 +318,47 @@ impl Grid {
         }
     }
 
-    /// Corner codes of `points`; refuses NaN/infinite coordinates, then points outside
-    /// the box, naming the first offending point.
-    pub fn codes(&self, points: &[[f64; 3]]) -> Result<Vec<[u32; 3]>, MeshError> {
+    /// Corner codes of `points`, and the largest distance from a point to its grid
+    /// position (length; 0 for no point); refuses NaN/infinite coordinates, then points
+    /// outside the box, naming the first offending point.
+    pub fn codes(&self, points: &[[f64; 3]]) -> Result<(Vec<[u32; 3]>, f64), MeshError> {
         self.map_inside(points, |q| q)
     }
 
     /// Packed corner codes `x << 2B | y << B | z` of `points`, for `B <= 21` (the key fits
-    /// a `u64`); refuses like [`Grid::codes`].
-    pub fn keys(&self, points: &[[f64; 3]]) -> Result<Vec<u64>, MeshError> {
+    /// a `u64`), and the largest displacement; refuses like [`Grid::codes`].
+    pub fn keys(&self, points: &[[f64; 3]]) -> Result<(Vec<u64>, f64), MeshError> {
         debug_assert!(self.bits <= MAX_KEY_BITS);
         self.map_inside(points, |q| u64::pack(q, self.bits))
     }
 
-    /// `f(code)` for every point, in one parallel pass that also checks the box; refuses
-    /// like [`Grid::codes`].
-    fn map_inside<T: Send>(
+    /// `f(code)` for every point and the largest displacement `|p - position(code)|`, in
+    /// one parallel pass that also checks the box; refuses like [`Grid::codes`].
+    fn map_inside<T: Copy + Send>(
         &self,
         points: &[[f64; 3]],
         f: impl Fn([u32; 3]) -> T + Sync,
-    ) -> Result<Vec<T>, MeshError> {
-        let outside = AtomicBool::new(false);
-        let out: Vec<T> = points
-            .par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|p| {
-                if !self.contains(p) {
-                    outside.store(true, Ordering::Relaxed);
+    ) -> Result<(Vec<T>, f64), MeshError> {
+        let mut out = uninit::<T>(points.len());
+        let (outside, max_squared) = out
+            .par_chunks_mut(MIN_LEN)
+            .zip(points.par_chunks(MIN_LEN))
+            .map(|(out, points)| {
+                let (mut outside, mut max_squared) = (false, 0.0f64);
+                for (o, p) in out.iter_mut().zip(points) {
+                    outside |= !self.contains(p);
+                    let q = self.code(p);
+                    max_squared = max_squared.max(squared_distance(p, &self.position(&q)));
+                    *o = MaybeUninit::new(f(q));
                 }
-                f(self.code(p))
+                (outside, max_squared)
             })
-            .collect();
-        if outside.into_inner() {
+            .reduce(|| (false, 0.0), |a, b| (a.0 | b.0, a.1.max(b.1)));
+        if outside {
             return Err(self.refusal(points));
         }
-        Ok(out)
+        // SAFETY: the chunks of `out` cover it, and every item was written.
+        Ok((unsafe { assume_init(out) }, max_squared.sqrt()))
     }
 
     /// The error for points that failed [`Grid::contains`]: the first non-finite
@@ -365,8 +407,14 @@ pub fn bounding_box(points: &[[f64; 3]]) -> Option<([f64; 3], [f64; 3])> {
 #[inline]
 #[must_use]
 fn distance(p: &[f64; 3], q: &[f64; 3]) -> f64 {
+    squared_distance(p, q).sqrt()
+}
+
+/// `|p - q|^2` (squared length); `distance` is its square root, so maxima agree exactly.
+#[inline]
+fn squared_distance(p: &[f64; 3], q: &[f64; 3]) -> f64 {
     let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 }
 
 /// Codes and dequantised positions of a point set.
@@ -383,18 +431,12 @@ pub struct Quantized {
 /// Quantizes `points` on `grid`; refuses NaN/infinite coordinates and points outside
 /// the grid's box (naming the first one).
 pub fn quantize(points: &[[f64; 3]], grid: &Grid) -> Result<Quantized, MeshError> {
-    let codes = grid.codes(points)?;
+    let (codes, max_displacement) = grid.codes(points)?;
     let positions: Vec<[f64; 3]> = codes
         .par_iter()
         .with_min_len(MIN_LEN)
         .map(|q| grid.position(q))
         .collect();
-    let max_displacement = points
-        .par_iter()
-        .with_min_len(MIN_LEN)
-        .zip(&positions)
-        .map(|(p, x)| distance(p, x))
-        .reduce(|| 0.0, f64::max);
     Ok(Quantized {
         codes,
         positions,
@@ -601,6 +643,27 @@ fn spread(key: u64) -> u64 {
 /// many slots of 16 bytes) then stays in a core's L2 cache.
 const PARTITION_TARGET: usize = 8192;
 
+/// A buffer of `len` uninitialized items, for one that is written in full before it is
+/// read: `vec![x; len]` would first fill it (a pass over memory that the kernels then
+/// write again).
+fn uninit<T>(len: usize) -> Vec<MaybeUninit<T>> {
+    let mut v = Vec::with_capacity(len);
+    // SAFETY: the capacity is `len`, and `MaybeUninit` items need no initialization.
+    unsafe { v.set_len(len) };
+    v
+}
+
+/// The buffer of [`uninit`] once written.
+///
+/// # Safety
+/// Every item of `v` is initialized.
+unsafe fn assume_init<T>(v: Vec<MaybeUninit<T>>) -> Vec<T> {
+    let mut v = std::mem::ManuallyDrop::new(v);
+    // SAFETY: `MaybeUninit<T>` has the layout of `T`; the allocation, length and capacity
+    // are `v`'s, which is not dropped; every item is initialized (the caller's contract).
+    unsafe { Vec::from_raw_parts(v.as_mut_ptr().cast::<T>(), v.len(), v.capacity()) }
+}
+
 /// A slice that several threads write at disjoint indices.
 #[derive(Clone, Copy)]
 struct DisjointWrites<T>(*mut T, usize);
@@ -625,7 +688,50 @@ impl<T> DisjointWrites<T> {
     }
 }
 
-/// Groups packed keys in three cache-friendly passes:
+/// A vertex and its packed key, as [`group_keys_partitioned`] moves and stores them: one
+/// `u64` `key << shift | vertex` when the key and the vertex index fit in 63 bits (the
+/// usual case: `3 B + log2 n <= 63`), else a pair.
+trait KeyedVertex: Copy + PartialEq + Send + Sync {
+    /// Marks an empty hash-table slot; equal to no entry.
+    const EMPTY: Self;
+    fn new(key: u64, vertex: u32, shift: u32) -> Self;
+    fn key(self, shift: u32) -> u64;
+    fn vertex(self, shift: u32) -> u32;
+}
+
+impl KeyedVertex for u64 {
+    const EMPTY: Self = u64::MAX;
+    #[inline]
+    fn new(key: u64, vertex: u32, shift: u32) -> Self {
+        (key << shift) | u64::from(vertex)
+    }
+    #[inline]
+    fn key(self, shift: u32) -> u64 {
+        self >> shift
+    }
+    #[inline]
+    fn vertex(self, shift: u32) -> u32 {
+        (self & ((1u64 << shift) - 1)) as u32
+    }
+}
+
+impl KeyedVertex for (u64, u32) {
+    const EMPTY: Self = (u64::MAX, u32::MAX);
+    #[inline]
+    fn new(key: u64, vertex: u32, _: u32) -> Self {
+        (key, vertex)
+    }
+    #[inline]
+    fn key(self, _: u32) -> u64 {
+        self.0
+    }
+    #[inline]
+    fn vertex(self, _: u32) -> u32 {
+        self.1
+    }
+}
+
+/// Groups packed keys (`3 B <= 63` bits) in cache-friendly parallel passes:
 ///
 /// 1. a stable counting sort on the top bits of [`spread`] splits the vertices into
 ///    partitions of about [`PARTITION_TARGET`] keys, equal keys in the same partition in
@@ -633,12 +739,26 @@ impl<T> DisjointWrites<T> {
 ///    fixed by the counts of the chunks before it);
 /// 2. each partition, in parallel, finds with a small open-addressing table the first
 ///    vertex `rep[i] <= i` that has vertex `i`'s key;
-/// 3. one pass in vertex order numbers the vertices with `rep[i] == i` (the first of
-///    their cluster) and gives every other vertex its first's id.
+/// 3. the vertices with `rep[i] == i` (the first of their cluster) are numbered in vertex
+///    order by per-chunk counts, and every other vertex takes its first's number.
 ///
 /// Clusters come numbered by their smallest vertex index; nothing depends on the thread
-/// count.
+/// count. Vertices and keys travel as one `u64` when they fit (see [`KeyedVertex`]).
 fn group_keys_partitioned(keys: &[u64], bits: u32) -> Clusters {
+    let n = keys.len();
+    debug_assert!(3 * bits <= 63 && n < u32::MAX as usize);
+    let shift = usize::BITS - n.saturating_sub(1).leading_zeros();
+    let rep = if 3 * bits + shift <= 63 {
+        representatives::<u64>(keys, shift)
+    } else {
+        representatives::<(u64, u32)>(keys, shift)
+    };
+    number_clusters(rep, keys, bits)
+}
+
+/// Steps 1 and 2 of [`group_keys_partitioned`]: `rep[i]`, the smallest vertex with vertex
+/// `i`'s key.
+fn representatives<E: KeyedVertex>(keys: &[u64], shift: u32) -> Vec<u32> {
     let n = keys.len();
     let part_bits = (n / PARTITION_TARGET)
         .max(1)
@@ -679,7 +799,7 @@ fn group_keys_partitioned(keys: &[u64], bits: u32) -> Clusters {
             *c += k as usize;
         }
     }
-    let mut sorted = vec![(0u64, 0u32); n];
+    let mut sorted = uninit::<E>(n);
     let out = DisjointWrites::new(&mut sorted);
     keys.par_chunks(CHUNK)
         .zip(chunk_offsets)
@@ -687,65 +807,122 @@ fn group_keys_partitioned(keys: &[u64], bits: u32) -> Clusters {
         .for_each(|(chunk_no, (chunk, mut offset))| {
             for (j, &k) in chunk.iter().enumerate() {
                 let p = part_of(k);
+                let vertex = (chunk_no * CHUNK + j) as u32;
                 // SAFETY: chunk `c` writes partition `p` at
                 // `[offset[c][p], offset[c][p] + count[c][p])`; these ranges are disjoint.
-                unsafe { out.write(offset[p], (k, (chunk_no * CHUNK + j) as u32)) };
+                unsafe { out.write(offset[p], MaybeUninit::new(E::new(k, vertex, shift))) };
                 offset[p] += 1;
             }
         });
-    let mut rep = vec![0u32; n];
+    // SAFETY: the chunks' ranges cover `0..n` (the counts sum to `n`).
+    let sorted = unsafe { assume_init(sorted) };
+    let mut rep = uninit::<u32>(n);
     let rep_out = DisjointWrites::new(&mut rep);
     (0..parts).into_par_iter().for_each(|p| {
         let part = &sorted[start[p]..start[p + 1]];
         let slots = (2 * part.len()).next_power_of_two().max(8);
         let mask = slots - 1;
-        let shift = 64 - slots.trailing_zeros();
-        // (key, first vertex + 1); 0 marks an empty slot.
-        let mut table = vec![(0u64, 0u32); slots];
-        for &(k, i) in part {
-            let mut s = ((spread(k) << part_bits) >> shift) as usize;
+        let hash_shift = 64 - slots.trailing_zeros();
+        // The first entry of each key; entries arrive in ascending vertex order.
+        let mut table = vec![E::EMPTY; slots];
+        for &e in part {
+            let k = e.key(shift);
+            let mut s = ((spread(k) << part_bits) >> hash_shift) as usize;
             let first = loop {
-                let (key, first) = table[s];
-                if first == 0 {
-                    table[s] = (k, i + 1);
-                    break i;
+                let slot = table[s];
+                if slot == E::EMPTY {
+                    table[s] = e;
+                    break e.vertex(shift);
                 }
-                if key == k {
-                    break first - 1;
+                if slot.key(shift) == k {
+                    break slot.vertex(shift);
                 }
                 s = (s + 1) & mask;
             };
             // SAFETY: every vertex index appears in exactly one entry of `sorted`.
-            unsafe { rep_out.write(i as usize, first) };
+            unsafe { rep_out.write(e.vertex(shift) as usize, MaybeUninit::new(first)) };
         }
     });
-    drop(sorted);
-    let mut id = rep;
-    let mut first = Vec::new();
-    let mut code = Vec::new();
-    for i in 0..n {
-        let r = id[i] as usize;
-        id[i] = if r == i {
-            first.push(i as u32);
-            code.push(keys[i].unpack(bits));
-            (first.len() - 1) as u32
-        } else {
-            id[r]
-        };
-    }
-    Clusters { id, first, code }
+    // SAFETY: as above, every index of `rep` was written once.
+    unsafe { assume_init(rep) }
 }
 
-/// Quantizes `points` on `grid` and groups them by code; refuses like [`Grid::codes`].
+/// Step 3 of [`group_keys_partitioned`]: clusters numbered in order of their first vertex,
+/// in three parallel passes over chunks (count the firsts; number them at their chunk's
+/// offset; give every vertex its first's number, in place of `rep`).
+fn number_clusters(mut rep: Vec<u32>, keys: &[u64], bits: u32) -> Clusters {
+    let n = rep.len();
+    let firsts: Vec<usize> = rep
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(chunk_no, chunk)| {
+            let base = chunk_no * CHUNK;
+            chunk
+                .iter()
+                .enumerate()
+                .filter(|&(j, &r)| r as usize == base + j)
+                .count()
+        })
+        .collect();
+    let count = firsts.iter().sum();
+    // `id` is written at the first vertex of each cluster only, and read only there.
+    let mut id = uninit::<u32>(n);
+    let mut first = uninit::<u32>(count);
+    let mut code = uninit::<[u32; 3]>(count);
+    let mut parts = Vec::with_capacity(firsts.len());
+    let (mut first_rest, mut code_rest) = (&mut first[..], &mut code[..]);
+    let mut offset = 0;
+    for &f in &firsts {
+        let (fp, fr) = first_rest.split_at_mut(f);
+        let (cp, cr) = code_rest.split_at_mut(f);
+        parts.push((offset, fp, cp));
+        (first_rest, code_rest) = (fr, cr);
+        offset += f;
+    }
+    id.par_chunks_mut(CHUNK)
+        .zip(rep.par_chunks(CHUNK))
+        .zip(parts)
+        .enumerate()
+        .for_each(|(chunk_no, ((id, rep), (offset, first, code)))| {
+            let base = chunk_no * CHUNK;
+            let mut k = 0;
+            for (j, &r) in rep.iter().enumerate() {
+                let i = base + j;
+                if r as usize == i {
+                    id[j] = MaybeUninit::new((offset + k) as u32);
+                    first[k] = MaybeUninit::new(i as u32);
+                    code[k] = MaybeUninit::new(keys[i].unpack(bits));
+                    k += 1;
+                }
+            }
+        });
+    // SAFETY: `rep[i]` is the first vertex of `i`'s cluster, whose `id` was written.
+    rep.par_iter_mut()
+        .with_min_len(MIN_LEN)
+        .for_each(|r| *r = unsafe { id[*r as usize].assume_init() });
+    Clusters {
+        id: rep,
+        // SAFETY: chunk `c` wrote its `firsts[c]` clusters; these parts cover `0..count`.
+        first: unsafe { assume_init(first) },
+        // SAFETY: as for `first`.
+        code: unsafe { assume_init(code) },
+    }
+}
+
+/// Quantizes `points` on `grid` and groups them by code; returns the clusters and the
+/// largest distance from a point to its grid position (length). Refuses like
+/// [`Grid::codes`].
 ///
 /// For `B <= 21` the packed codes are grouped by [`group_keys_partitioned`] (expected
 /// O(n)); above, by a stable LSD radix sort of 128-bit keys (O(n B)) and a pass in vertex
 /// order. Clusters are numbered by their smallest vertex index, for any thread count.
-pub fn group_points(points: &[[f64; 3]], grid: &Grid) -> Result<Clusters, MeshError> {
+pub fn group_points(points: &[[f64; 3]], grid: &Grid) -> Result<(Clusters, f64), MeshError> {
     if grid.bits <= MAX_KEY_BITS {
-        Ok(group_keys_partitioned(&grid.keys(points)?, grid.bits))
+        let (keys, max_displacement) = grid.keys(points)?;
+        Ok((group_keys_partitioned(&keys, grid.bits), max_displacement))
     } else {
-        Ok(group_codes_sorted(&grid.codes(points)?, grid.bits))
+        let (codes, max_displacement) = grid.codes(points)?;
+        Ok((group_codes_sorted(&codes, grid.bits), max_displacement))
     }
 }
 
@@ -843,6 +1020,28 @@ pub struct Clustering {
     pub max_displacement: f64,
 }
 
+/// The first `kept[c]` items of every chunk `c` of `FACE_CHUNK` items, in order, copied
+/// in parallel.
+///
+/// # Safety
+/// Those items are initialized (the others need not be).
+unsafe fn gather_chunks<T: Copy + Send + Sync>(items: &[MaybeUninit<T>], kept: &[usize]) -> Vec<T> {
+    let mut out = uninit::<T>(kept.iter().sum());
+    let mut parts = Vec::with_capacity(kept.len());
+    let mut rest = &mut out[..];
+    for &k in kept {
+        let (part, tail) = rest.split_at_mut(k);
+        parts.push(part);
+        rest = tail;
+    }
+    parts
+        .into_par_iter()
+        .zip(items.par_chunks(FACE_CHUNK))
+        .for_each(|(part, chunk)| part.copy_from_slice(&chunk[..part.len()]));
+    // SAFETY: the parts cover `out`, copied from initialized items (the caller's contract).
+    unsafe { assume_init(out) }
+}
+
 /// The faces not marked DROPPED and their indices, in order: per-chunk counts give each
 /// chunk its slice of the output, filled in parallel.
 fn compact(mapped: &[[u32; 3]], kept: usize) -> (Vec<[u32; 3]>, Vec<u32>) {
@@ -881,13 +1080,14 @@ fn compact(mapped: &[[u32; 3]], kept: usize) -> (Vec<[u32; 3]>, Vec<u32>) {
     (out, index)
 }
 
-/// Rossignac-Borrel vertex clustering on `grid`; see the module docs.
+/// Rossignac-Borrel vertex clustering on `grid`; see the module docs. Faces come as
+/// `u32` or `i64` indices ([`VertexIndex`]).
 ///
-/// Refuses an empty mesh, NaN/infinite coordinates, out-of-range indices and vertices
-/// outside the grid's box.
-pub fn cluster(
+/// Refuses an empty mesh, NaN/infinite coordinates, negative or out-of-range indices and
+/// vertices outside the grid's box.
+pub fn cluster<I: VertexIndex>(
     vertices: &[[f64; 3]],
-    faces: &[[u32; 3]],
+    faces: &[[I; 3]],
     grid: &Grid,
     duplicates: Duplicates,
 ) -> Result<Clustering, MeshError> {
@@ -902,84 +1102,107 @@ pub fn cluster(
             "{n} vertices and {m} faces exceed the supported maximum of 2^32 - 2"
         )));
     }
-    let clusters = group_points(vertices, grid)?;
+    let (clusters, max_displacement_all) = group_points(vertices, grid)?;
     let id = &clusters.id;
+    let count = clusters.count();
 
-    // Faces on cluster ids, in chunks that also check the indices; a degenerate face
-    // (two equal corners) becomes [DROPPED; 3], branch-free: at low B about half the
-    // faces collapse, in no predictable pattern.
-    let mut mapped = vec![[0u32; 3]; m];
-    let (bad_index, degenerate_faces) = mapped
+    // One pass over the faces in parallel chunks: corners to cluster ids (checking the
+    // indices), degenerate faces (two equal corners) dropped, kept faces packed at the
+    // front of their chunk with their input index, then (while the chunk is in cache)
+    // their clusters marked used. Every face is written at the chunk's cursor, which
+    // only a kept face advances: no unpredictable branch when about half the faces
+    // collapse.
+    let used: Vec<AtomicBool> = (0..count).map(|_| AtomicBool::new(false)).collect();
+    let mut packed = uninit::<[u32; 3]>(m);
+    let mut packed_index = uninit::<u32>(m);
+    let chunks: Vec<(usize, bool)> = packed
         .par_chunks_mut(FACE_CHUNK)
+        .zip(packed_index.par_chunks_mut(FACE_CHUNK))
         .zip(faces.par_chunks(FACE_CHUNK))
-        .map(|(out, chunk)| {
-            let (mut bad, mut degenerate) = (false, 0usize);
-            for (o, f) in out.iter_mut().zip(chunk) {
+        .enumerate()
+        .map(|(chunk_no, ((out, out_index), chunk))| {
+            let base = chunk_no * FACE_CHUNK;
+            let (mut kept, mut bad) = (0, false);
+            for (j, f) in chunk.iter().enumerate() {
                 let (Some(&a), Some(&b), Some(&c)) = (
-                    id.get(f[0] as usize),
-                    id.get(f[1] as usize),
-                    id.get(f[2] as usize),
+                    id.get(f[0].to_usize()),
+                    id.get(f[1].to_usize()),
+                    id.get(f[2].to_usize()),
                 ) else {
                     bad = true;
                     continue;
                 };
-                let collapsed = repeats_corner(&[a, b, c]);
-                degenerate += usize::from(collapsed);
-                let all_ones = 0u32.wrapping_sub(u32::from(collapsed)); // DROPPED or 0
-                *o = [a | all_ones, b | all_ones, c | all_ones];
+                out[kept] = MaybeUninit::new([a, b, c]);
+                out_index[kept] = MaybeUninit::new((base + j) as u32);
+                kept += usize::from(!repeats_corner(&[a, b, c]));
             }
-            (bad, degenerate)
+            for t in &out[..kept] {
+                // SAFETY: the first `kept` faces of the chunk were written above.
+                for &k in unsafe { t.assume_init_ref() } {
+                    used[k as usize].store(true, Ordering::Relaxed);
+                }
+            }
+            (kept, bad)
         })
-        .reduce(|| (false, 0), |x, y| (x.0 | y.0, x.1 + y.1));
-    if bad_index {
+        .collect();
+    if chunks.iter().any(|&(_, bad)| bad) {
         check_indices(faces, n)?;
     }
+    let kept_per_chunk: Vec<usize> = chunks.iter().map(|&(kept, _)| kept).collect();
+    let degenerate_faces = m - kept_per_chunk.iter().sum::<usize>();
+    // Each chunk wrote its first `kept` items (all of them when no face was dropped).
+    let (mut out_faces, mut face_index) = if degenerate_faces == 0 {
+        // SAFETY: every chunk kept, so wrote, all its faces.
+        unsafe { (assume_init(packed), assume_init(packed_index)) }
+    } else {
+        // SAFETY: chunk `c` wrote its first `kept_per_chunk[c]` items.
+        unsafe {
+            (
+                gather_chunks(&packed, &kept_per_chunk),
+                gather_chunks(&packed_index, &kept_per_chunk),
+            )
+        }
+    };
     let mut duplicate_faces = 0;
     if duplicates != Duplicates::Keep {
-        let mut keyed: Vec<([u32; 3], u32)> = mapped
+        let mut keyed: Vec<([u32; 3], u32)> = out_faces
             .par_iter()
             .enumerate()
-            .filter(|(_, t)| t[0] != DROPPED)
             .map(|(i, t)| (face_key(*t, duplicates), i as u32))
             .collect();
-        // Face indices are unique, so the order is total and the sort deterministic.
+        // Positions are unique, so the order is total and the sort deterministic.
         keyed.par_sort_unstable();
         for w in keyed.windows(2) {
             if w[0].0 == w[1].0 {
-                mapped[w[1].1 as usize] = [DROPPED; 3];
+                out_faces[w[1].1 as usize] = [DROPPED; 3];
                 duplicate_faces += 1;
             }
         }
+        if duplicate_faces > 0 {
+            // A repeated face's clusters are its kept original's: `used` stays right.
+            let (faces, position) = compact(&out_faces, out_faces.len() - duplicate_faces);
+            face_index = position.iter().map(|&i| face_index[i as usize]).collect();
+            out_faces = faces;
+        }
     }
-    let kept_faces = m - degenerate_faces - duplicate_faces;
-    let (mut out_faces, face_index) = if kept_faces == m {
-        (mapped, (0..m as u32).collect())
-    } else {
-        compact(&mapped, kept_faces)
-    };
 
-    // Clusters used by a kept face, then new ids by prefix count: kept clusters keep
-    // their relative order.
-    let used: Vec<AtomicBool> = (0..clusters.count())
-        .map(|_| AtomicBool::new(false))
-        .collect();
-    out_faces.par_iter().with_min_len(MIN_LEN).for_each(|t| {
-        for &c in t {
-            if !used[c as usize].load(Ordering::Relaxed) {
-                used[c as usize].store(true, Ordering::Relaxed);
+    // New ids by prefix count over the used clusters: kept clusters keep their order.
+    let unreferenced_vertices = used
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .filter(|u| !u.load(Ordering::Relaxed))
+        .count();
+    let mut new_id = Vec::new();
+    let mut kept: Vec<u32> = Vec::new();
+    if unreferenced_vertices > 0 {
+        new_id = vec![DROPPED; count];
+        kept.reserve(count - unreferenced_vertices);
+        for (c, u) in used.iter().enumerate() {
+            if u.load(Ordering::Relaxed) {
+                new_id[c] = kept.len() as u32;
+                kept.push(c as u32);
             }
         }
-    });
-    let mut new_id = vec![DROPPED; clusters.count()];
-    let mut kept: Vec<u32> = Vec::new();
-    for (c, u) in used.iter().enumerate() {
-        if u.load(Ordering::Relaxed) {
-            new_id[c] = kept.len() as u32;
-            kept.push(c as u32);
-        }
-    }
-    drop(used);
-    if kept.len() < clusters.count() {
         out_faces
             .par_iter_mut()
             .with_min_len(MIN_LEN)
@@ -992,16 +1215,21 @@ pub fn cluster(
             });
     }
 
-    let vertex_map: Vec<i64> = id
-        .par_iter()
-        .with_min_len(MIN_LEN)
-        .map(|&c| match new_id[c as usize] {
-            DROPPED => -1,
-            k => i64::from(k),
-        })
-        .collect();
-    let merged_vertices = n - clusters.count();
-    let unreferenced_vertices = clusters.count() - kept.len();
+    let vertex_map: Vec<i64> = if unreferenced_vertices == 0 {
+        id.par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|&c| i64::from(c))
+            .collect()
+    } else {
+        id.par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|&c| match new_id[c as usize] {
+                DROPPED => -1,
+                k => i64::from(k),
+            })
+            .collect()
+    };
+    let merged_vertices = n - count;
     let out_codes: Vec<[u32; 3]> = if unreferenced_vertices == 0 {
         clusters.code
     } else {
@@ -1015,18 +1243,22 @@ pub fn cluster(
         .with_min_len(MIN_LEN)
         .map(|q| grid.position(q))
         .collect();
-    let max_displacement = vertices
-        .par_iter()
-        .with_min_len(MIN_LEN)
-        .zip(&vertex_map)
-        .map(|(p, &k)| {
-            if k >= 0 {
-                distance(p, &out_vertices[k as usize])
-            } else {
-                0.0
-            }
-        })
-        .reduce(|| 0.0, f64::max);
+    let max_displacement = if unreferenced_vertices == 0 {
+        max_displacement_all
+    } else {
+        vertices
+            .par_iter()
+            .with_min_len(MIN_LEN)
+            .zip(&vertex_map)
+            .map(|(p, &k)| {
+                if k >= 0 {
+                    distance(p, &out_vertices[k as usize])
+                } else {
+                    0.0
+                }
+            })
+            .reduce(|| 0.0, f64::max)
+    };
 
     Ok(Clustering {
         merged_vertices,
@@ -1064,6 +1296,50 @@ mod tests {
 
     fn unit_cube() -> Grid {
         Grid::new(2, GridKind::Cube, [0.0; 3], [3.0, 1.5, 0.0]).unwrap()
+    }
+
+    /// `round((x - min) / step)` halves up, by division and `floor` only: the reference
+    /// for the reciprocal shortcut of `axis_code`. (`floor(y + 0.5)` would be wrong: the
+    /// sum rounds `0.5 - 2^-54` up to 1.)
+    fn divided_code(x: f64, min: f64, step: f64, top: u32) -> u32 {
+        if step > 0.0 {
+            let y = (x - min) / step;
+            let q = y.floor() + if y - y.floor() >= 0.5 { 1.0 } else { 0.0 };
+            q.clamp(0.0, f64::from(top)) as u32
+        } else {
+            0
+        }
+    }
+
+    #[test]
+    fn reciprocal_codes_equal_divided_codes_at_and_around_half_steps() {
+        let mut rng = Mix(17);
+        let mut near_half = 0;
+        for trial in 0..3000 {
+            let bits = 1 + (trial % 32) as u32;
+            let min = (rng.unit() - 0.5) * 10f64.powi(trial % 19 - 9);
+            let side = 10f64.powf(rng.unit() * 24.0 - 12.0);
+            let g = Grid::new(bits, GridKind::Cube, [min; 3], [min + side; 3]).unwrap();
+            let (step, top) = (g.step[0], g.max_code());
+            for _ in 0..200 {
+                let k = (rng.unit() * f64::from(top)).floor();
+                let mut x = min + (k + 0.5) * step;
+                if rng.unit() < 0.3 {
+                    x = min + rng.unit() * side;
+                }
+                for x in [x.next_down(), x, x.next_up()] {
+                    let x = x.clamp(min, min + side);
+                    let fast = axis_code(x, min, step, g.inv_step[0], top);
+                    assert_eq!(fast, divided_code(x, min, step, top), "x {x:e} on {g:?}");
+                    let y = (x - min) / step;
+                    near_half += usize::from((y - y.floor() - 0.5).abs() < 1e-9);
+                }
+            }
+        }
+        assert!(
+            near_half > 100_000,
+            "only {near_half} points near a half step"
+        );
     }
 
     #[test]
@@ -1135,7 +1411,7 @@ mod tests {
             Err(MeshError::NonFinite { vertex: 1 })
         );
         let g = Grid::new(8, GridKind::Cube, [0.0; 3], [1.0; 3]).unwrap();
-        let faces = [[0, 1, 2]];
+        let faces = [[0u32, 1, 2]];
         assert_eq!(
             cluster(&nan, &faces, &g, Duplicates::Keep).unwrap_err(),
             MeshError::NonFinite { vertex: 2 }
@@ -1150,6 +1426,15 @@ mod tests {
             Err(MeshError::IndexOutOfRange {
                 face: 0,
                 index: 2,
+                vertex_count: 2
+            })
+        ));
+        let signed = [[0i64, 1, 0], [1, -1, 0]];
+        assert!(matches!(
+            cluster(&outside[..2], &signed, &g, Duplicates::Keep),
+            Err(MeshError::IndexOutOfRange {
+                face: 1,
+                index: -1,
                 vertex_count: 2
             })
         ));
@@ -1203,7 +1488,8 @@ mod tests {
             let top = f64::from(max_code(bits));
             let grid = Grid::new(bits, GridKind::Cube, [0.0; 3], [top; 3]).unwrap();
             let points: Vec<[f64; 3]> = codes.iter().map(|q| q.map(f64::from)).collect();
-            let clusters = group_points(&points, &grid).unwrap();
+            let (clusters, max_displacement) = group_points(&points, &grid).unwrap();
+            assert_eq!(max_displacement, 0.0, "points on the grid do not move");
             let mut firsts: Vec<u32> = Vec::new();
             for i in 0..n {
                 let first = (0..=i).find(|&k| codes[k] == codes[i]).unwrap() as u32;
@@ -1230,8 +1516,9 @@ mod tests {
     #[test]
     fn partitioned_grouping_matches_the_radix_sort_on_many_chunks_and_partitions() {
         let mut rng = Mix(11);
-        // 300k vertices: 5 input chunks, 32 partitions; few and many repeats.
-        for (bits, range) in [(8u32, 0x3fu64), (16, 0xffff), (21, 0x1f_ffff)] {
+        // 300k vertices: 5 input chunks, 32 partitions; few and many repeats; entries
+        // packed in a u64 (B = 8, 14: 3 B + 19 <= 63) and as pairs (B = 16, 21).
+        for (bits, range) in [(8u32, 0x3fu64), (14, 0x3fff), (16, 0xffff), (21, 0x1f_ffff)] {
             let codes: Vec<[u32; 3]> = (0..300_000)
                 .map(|_| [0, 1, 2].map(|_| ((rng.next() & range) as u32) & max_code(bits)))
                 .collect();
@@ -1293,7 +1580,7 @@ mod tests {
             [0.1, 0.0, 0.0],
             [5.0, 5.0, 0.0],
         ];
-        let f = [[3, 0, 2], [4, 2, 0]];
+        let f = [[3i64, 0, 2], [4, 2, 0]];
         let g = Grid::bounding(&v, 3, GridKind::Cube).unwrap();
         let c = cluster(&v, &f, &g, Duplicates::Keep).unwrap();
         // Clusters {0}, {1, 3}, {2}, {4}; order of smallest index: 0, 1, 2, 4.

@@ -54,7 +54,7 @@ def as_points(points: Any, name: str = "points", *, allow_empty: bool = False) -
     return out
 
 
-def _as_faces(faces: Any, vertex_count: int) -> np.ndarray:
+def _as_faces(faces: Any, vertex_count: int, keep_int64: bool = False) -> np.ndarray:
     array = np.asarray(faces)
     if array.dtype == bool or not np.issubdtype(array.dtype, np.integer):
         if array.size == 0 and array.ndim == 2:
@@ -66,6 +66,8 @@ def _as_faces(faces: Any, vertex_count: int) -> np.ndarray:
     if len(array) == 0:
         raise ValueError("mesh is empty: faces has no rows")
     if array.dtype == np.int64 and array.flags.c_contiguous:
+        if keep_int64:
+            return array
         converted = _core.faces_as_u32(array, vertex_count)
         if converted is not None:
             return converted
@@ -84,7 +86,9 @@ def _as_faces(faces: Any, vertex_count: int) -> np.ndarray:
     return np.ascontiguousarray(array, dtype=np.uint32)
 
 
-def as_mesh(mesh: MeshLike, faces: Any = None) -> tuple[np.ndarray, np.ndarray]:
+def as_mesh(
+    mesh: MeshLike, faces: Any = None, *, keep_int64: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """Return ``(vertices, faces)`` as C-ordered ``float64 (n, 3)`` and ``uint32 (m, 3)``.
 
     Parameters
@@ -94,6 +98,10 @@ def as_mesh(mesh: MeshLike, faces: Any = None) -> tuple[np.ndarray, np.ndarray]:
         ``(vertices, faces)`` pair, or a vertex array when ``faces`` is given.
     faces
         ``(m, 3)`` integer vertex indices of any integer dtype, C or Fortran order.
+    keep_int64
+        Return C-ordered int64 faces (numpy's default integer, trimesh's) as they are,
+        indices unchecked, for kernels that read int64 and check the indices themselves:
+        this skips a conversion pass over the faces.
 
     Raises
     ------
@@ -116,4 +124,4 @@ def as_mesh(mesh: MeshLike, faces: Any = None) -> tuple[np.ndarray, np.ndarray]:
     else:
         vertices = mesh
     vertices = as_points(vertices, "vertices")
-    return vertices, _as_faces(faces, len(vertices))
+    return vertices, _as_faces(faces, len(vertices), keep_int64)

@@ -371,7 +371,7 @@ def cluster(
     convention = _check_choice("convention", convention, CONVENTIONS)
     duplicates = _check_choice("duplicates", duplicates, DUPLICATES)
     box_min, box_max = _as_box(box)
-    vertices, triangles = as_mesh(mesh_or_vertices, faces)
+    vertices, triangles = as_mesh(mesh_or_vertices, faces, keep_int64=True)
     raw = _core.cluster(
         vertices,
         triangles,
