@@ -145,6 +145,20 @@ const ROUNDING_MAGIC: f64 = (1u64 << 52) as f64;
 #[inline]
 #[must_use]
 fn axis_code(x: f64, min: f64, step: f64, inv_step: f64, top: u32) -> u32 {
+    code_bits(axis_code_value(x, min, step, inv_step, top))
+}
+
+/// The integer `0 <= q < 2^32` held by the f64 `q`, without a conversion instruction.
+#[inline]
+#[must_use]
+fn code_bits(q: f64) -> u32 {
+    (q + ROUNDING_MAGIC).to_bits() as u32
+}
+
+/// [`axis_code`] as an f64 (exact: codes are below `2^32`).
+#[inline]
+#[must_use]
+fn axis_code_value(x: f64, min: f64, step: f64, inv_step: f64, top: u32) -> f64 {
     if step > 0.0 {
         let d = x - min;
         let fast = d * inv_step;
@@ -159,10 +173,9 @@ fn axis_code(x: f64, min: f64, step: f64, inv_step: f64, top: u32) -> u32 {
         };
         let top = f64::from(top);
         let q = if q > top { top } else { q };
-        let q = if q > 0.0 { q } else { 0.0 };
-        (q + ROUNDING_MAGIC).to_bits() as u32
+        if q > 0.0 { q } else { 0.0 }
     } else {
-        0
+        0.0
     }
 }
 
@@ -298,6 +311,18 @@ impl Grid {
         ]
     }
 
+    /// The corner code of a point of the box and its squared displacement
+    /// `|p - position(code)|^2` (squared length), both as [`Grid::code`] and
+    /// [`Grid::position`] give them.
+    #[inline]
+    #[must_use]
+    fn code_and_squared_displacement(&self, p: &[f64; 3]) -> ([u32; 3], f64) {
+        let (top, m, s, r) = (self.max_code(), &self.min, &self.step, &self.inv_step);
+        let q = [0, 1, 2].map(|a| axis_code_value(p[a], m[a], s[a], r[a], top));
+        let x = [0, 1, 2].map(|a| m[a] + q[a] * s[a]);
+        (q.map(code_bits), squared_distance(p, &x))
+    }
+
     /// Dequantised position `min + q * step` of a corner code (length).
     #[inline]
     #[must_use]
@@ -347,8 +372,12 @@ impl Grid {
                 let (mut outside, mut max_squared) = (false, 0.0f64);
                 for (o, p) in out.iter_mut().zip(points) {
                     outside |= !self.contains(p);
-                    let q = self.code(p);
-                    max_squared = max_squared.max(squared_distance(p, &self.position(&q)));
+                    let (q, squared) = self.code_and_squared_displacement(p);
+                    // Not `f64::max`, whose NaN handling costs instructions: a NaN
+                    // (from a refused point) is simply not larger.
+                    if squared > max_squared {
+                        max_squared = squared;
+                    }
                     *o = MaybeUninit::new(f(q));
                 }
                 (outside, max_squared)
