@@ -847,31 +847,35 @@ fn representatives<E: KeyedVertex>(keys: &[u64], shift: u32) -> Vec<u32> {
     let sorted = unsafe { assume_init(sorted) };
     let mut rep = uninit::<u32>(n);
     let rep_out = DisjointWrites::new(&mut rep);
-    (0..parts).into_par_iter().for_each(|p| {
-        let part = &sorted[start[p]..start[p + 1]];
-        let slots = (2 * part.len()).next_power_of_two().max(8);
-        let mask = slots - 1;
-        let hash_shift = 64 - slots.trailing_zeros();
-        // The first entry of each key; entries arrive in ascending vertex order.
-        let mut table = vec![E::EMPTY; slots];
-        for &e in part {
-            let k = e.key(shift);
-            let mut s = ((spread(k) << part_bits) >> hash_shift) as usize;
-            let first = loop {
-                let slot = table[s];
-                if slot == E::EMPTY {
-                    table[s] = e;
-                    break e.vertex(shift);
-                }
-                if slot.key(shift) == k {
-                    break slot.vertex(shift);
-                }
-                s = (s + 1) & mask;
-            };
-            // SAFETY: every vertex index appears in exactly one entry of `sorted`.
-            unsafe { rep_out.write(e.vertex(shift) as usize, MaybeUninit::new(first)) };
-        }
-    });
+    // One table per worker, cleared for each partition: no allocation per partition.
+    (0..parts)
+        .into_par_iter()
+        .for_each_init(Vec::new, |table, p| {
+            let part = &sorted[start[p]..start[p + 1]];
+            let slots = (2 * part.len()).next_power_of_two().max(8);
+            let mask = slots - 1;
+            let hash_shift = 64 - slots.trailing_zeros();
+            // The first entry of each key; entries arrive in ascending vertex order.
+            table.clear();
+            table.resize(slots, E::EMPTY);
+            for &e in part {
+                let k = e.key(shift);
+                let mut s = ((spread(k) << part_bits) >> hash_shift) as usize;
+                let first = loop {
+                    let slot = table[s];
+                    if slot == E::EMPTY {
+                        table[s] = e;
+                        break e.vertex(shift);
+                    }
+                    if slot.key(shift) == k {
+                        break slot.vertex(shift);
+                    }
+                    s = (s + 1) & mask;
+                };
+                // SAFETY: every vertex index appears in exactly one entry of `sorted`.
+                unsafe { rep_out.write(e.vertex(shift) as usize, MaybeUninit::new(first)) };
+            }
+        });
     // SAFETY: as above, every index of `rep` was written once.
     unsafe { assume_init(rep) }
 }

@@ -371,17 +371,23 @@ def cluster(
     convention = _check_choice("convention", convention, CONVENTIONS)
     duplicates = _check_choice("duplicates", duplicates, DUPLICATES)
     box_min, box_max = _as_box(box)
-    vertices, triangles = as_mesh(mesh_or_vertices, faces, keep_int64=True)
-    raw = _core.cluster(
-        vertices,
-        triangles,
-        bits,
-        grid,
-        box_min,
-        box_max,
-        convention == "centered",
-        duplicates,
-    )
+    # The kernel checks the indices and refuses NaN/infinite coordinates in its own
+    # passes; a refused mesh is checked again here for a message naming the row.
+    vertices, triangles = as_mesh(mesh_or_vertices, faces, keep_int64=True, check_finite=False)
+    try:
+        raw = _core.cluster(
+            vertices,
+            triangles,
+            bits,
+            grid,
+            box_min,
+            box_max,
+            convention == "centered",
+            duplicates,
+        )
+    except _core.MeshbitsError:
+        as_points(vertices, "vertices")
+        raise
     out_vertices, out_faces = raw.pop("vertices"), raw.pop("faces")
     return Clustered(
         vertices=out_vertices,
