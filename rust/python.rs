@@ -52,7 +52,10 @@ where
     let outcome = py.detach(move || {
         catch_unwind(AssertUnwindSafe(move || {
             if threads == 0 {
-                return kernel().map_err(PyErr::from);
+                // On a worker of the global pool, not the calling thread: the kernel's
+                // parallel loops then start without a cross-thread handoff, and its serial
+                // steps do not compete with spinning workers for the cores.
+                return rayon::scope(|_| kernel()).map_err(PyErr::from);
             }
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
