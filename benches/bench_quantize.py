@@ -142,7 +142,7 @@ def main() -> None:
     print(header)
     print("-" * len(header))
     for name, vertices, faces in meshes(args.quick):
-        repeats = 7 if len(faces) < 500_000 else 5
+        repeats = 9 if len(faces) < 500_000 else 7
         for bits in args.bits:
             job = (vertices, faces, bits)
             t_mb, _, result = best_time(meshbits.cluster, job, repeats)
