@@ -318,9 +318,14 @@ impl Grid {
     #[must_use]
     fn code_and_squared_displacement(&self, p: &[f64; 3]) -> ([u32; 3], f64) {
         let (top, m, s, r) = (self.max_code(), &self.min, &self.step, &self.inv_step);
-        let q = [0, 1, 2].map(|a| axis_code_value(p[a], m[a], s[a], r[a], top));
-        let x = [0, 1, 2].map(|a| m[a] + q[a] * s[a]);
-        (q.map(code_bits), squared_distance(p, &x))
+        let q = [
+            axis_code_value(p[0], m[0], s[0], r[0], top),
+            axis_code_value(p[1], m[1], s[1], r[1], top),
+            axis_code_value(p[2], m[2], s[2], r[2], top),
+        ];
+        let x = [m[0] + q[0] * s[0], m[1] + q[1] * s[1], m[2] + q[2] * s[2]];
+        let code = [code_bits(q[0]), code_bits(q[1]), code_bits(q[2])];
+        (code, squared_distance(p, &x))
     }
 
     /// Dequantised position `min + q * step` of a corner code (length).
