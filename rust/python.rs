@@ -529,48 +529,41 @@ fn cluster<'py>(
     centered: bool,
     duplicates: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    /// Everything but the arrays, the same for both face dtypes.
+    #[derive(Clone, Copy)]
+    struct Options {
+        bits: u32,
+        kind: GridKind,
+        box_min: Option<[f64; 3]>,
+        box_max: Option<[f64; 3]>,
+        centered: bool,
+        duplicates: Duplicates,
+    }
     fn run<I: VertexIndex>(
         py: Python<'_>,
         v: &[[f64; 3]],
         f: &[[I; 3]],
-        bits: u32,
-        kind: GridKind,
-        (box_min, box_max): (Option<[f64; 3]>, Option<[f64; 3]>),
-        centered: bool,
-        duplicates: Duplicates,
+        o: Options,
     ) -> PyResult<(Grid, Clustering, Codes)> {
         run_detached(py, || {
-            let grid = make_grid(v, bits, kind, box_min, box_max)?;
-            let mut c = cluster_kernel(v, f, &grid, duplicates)?;
-            let codes = Codes::new(std::mem::take(&mut c.codes), &grid, centered);
+            let grid = make_grid(v, o.bits, o.kind, o.box_min, o.box_max)?;
+            let mut c = cluster_kernel(v, f, &grid, o.duplicates)?;
+            let codes = Codes::new(std::mem::take(&mut c.codes), &grid, o.centered);
             Ok((grid, c, codes))
         })
     }
-    let kind = parse_grid(grid)?;
-    let duplicates = parse_duplicates(duplicates)?;
+    let options = Options {
+        bits,
+        kind: parse_grid(grid)?,
+        box_min,
+        box_max,
+        centered,
+        duplicates: parse_duplicates(duplicates)?,
+    };
     let v = triples(&vertices, "vertices")?;
-    let bounds = (box_min, box_max);
     let (grid, mut c, codes) = match &faces {
-        FaceArray::U32(f) => run(
-            py,
-            v,
-            triples(f, "faces")?,
-            bits,
-            kind,
-            bounds,
-            centered,
-            duplicates,
-        )?,
-        FaceArray::I64(f) => run(
-            py,
-            v,
-            triples(f, "faces")?,
-            bits,
-            kind,
-            bounds,
-            centered,
-            duplicates,
-        )?,
+        FaceArray::U32(f) => run(py, v, triples(f, "faces")?, options)?,
+        FaceArray::I64(f) => run(py, v, triples(f, "faces")?, options)?,
     };
     let out = PyDict::new(py);
     out.set_item("vertices", rows(py, c.vertices.into_flattened())?)?;
