@@ -76,12 +76,11 @@ pub fn indices_from_i64(faces: &[[i64; 3]], vertex_count: usize) -> Option<Vec<[
     if vertex_count > u32::MAX as usize {
         return None;
     }
-    let limit = i64::try_from(vertex_count).ok()?;
     faces
         .par_iter()
         .with_min_len(1 << 14)
         .map(|t| {
-            let ok = t.iter().all(|&i| (0..limit).contains(&i));
+            let ok = t.iter().all(|&i| i.to_usize() < vertex_count);
             ok.then(|| t.map(|i| i as u32))
         })
         .collect()

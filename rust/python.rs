@@ -531,7 +531,7 @@ fn cluster<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     /// Everything but the arrays, the same for both face dtypes.
     #[derive(Clone, Copy)]
-    struct Options {
+    struct ClusterOptions {
         bits: u32,
         kind: GridKind,
         box_min: Option<[f64; 3]>,
@@ -543,7 +543,7 @@ fn cluster<'py>(
         py: Python<'_>,
         v: &[[f64; 3]],
         f: &[[I; 3]],
-        o: Options,
+        o: ClusterOptions,
     ) -> PyResult<(Grid, Clustering, Codes)> {
         run_detached(py, || {
             let grid = make_grid(v, o.bits, o.kind, o.box_min, o.box_max)?;
@@ -552,7 +552,7 @@ fn cluster<'py>(
             Ok((grid, c, codes))
         })
     }
-    let options = Options {
+    let options = ClusterOptions {
         bits,
         kind: parse_grid(grid)?,
         box_min,

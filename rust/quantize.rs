@@ -128,8 +128,9 @@ const RECIPROCAL_SLACK: f64 = 1.0 / (1u64 << 45) as f64;
 /// its low 32 bits.
 const ROUNDING_MAGIC: f64 = (1u64 << 52) as f64;
 
-/// One coordinate's code: `round((x - min) / step)` with `y = (x - min) / step` the
-/// correctly rounded f64 quotient, halves up, clamped to `[0, top]`; 0 when the step is 0.
+/// One coordinate's code as an f64 (exact: codes are below `2^32`; [`code_bits`] gives
+/// the integer): `round((x - min) / step)` with `y = (x - min) / step` the correctly
+/// rounded f64 quotient, halves up, clamped to `[0, top]`; 0 when the step is 0.
 ///
 /// A division costs several multiplications and float-to-integer conversions several
 /// instructions, so `y' = (x - min) * inv_step` is tried first, with `inv_step` the f64
@@ -144,21 +145,7 @@ const ROUNDING_MAGIC: f64 = (1u64 << 52) as f64;
 /// division's.
 #[inline]
 #[must_use]
-fn axis_code(x: f64, min: f64, step: f64, inv_step: f64, top: u32) -> u32 {
-    code_bits(axis_code_value(x, min, step, inv_step, top))
-}
-
-/// The integer `0 <= q < 2^32` held by the f64 `q`, without a conversion instruction.
-#[inline]
-#[must_use]
-fn code_bits(q: f64) -> u32 {
-    (q + ROUNDING_MAGIC).to_bits() as u32
-}
-
-/// [`axis_code`] as an f64 (exact: codes are below `2^32`).
-#[inline]
-#[must_use]
-fn axis_code_value(x: f64, min: f64, step: f64, inv_step: f64, top: u32) -> f64 {
+fn axis_code(x: f64, min: f64, step: f64, inv_step: f64, top: u32) -> f64 {
     if step > 0.0 {
         let d = x - min;
         let fast = d * inv_step;
@@ -303,12 +290,7 @@ impl Grid {
     #[inline]
     #[must_use]
     pub fn code(&self, p: &[f64; 3]) -> [u32; 3] {
-        let (top, m, s, r) = (self.max_code(), &self.min, &self.step, &self.inv_step);
-        [
-            axis_code(p[0], m[0], s[0], r[0], top),
-            axis_code(p[1], m[1], s[1], r[1], top),
-            axis_code(p[2], m[2], s[2], r[2], top),
-        ]
+        self.code_and_squared_displacement(p).0
     }
 
     /// The corner code of a point of the box and its squared displacement
@@ -319,9 +301,9 @@ impl Grid {
     fn code_and_squared_displacement(&self, p: &[f64; 3]) -> ([u32; 3], f64) {
         let (top, m, s, r) = (self.max_code(), &self.min, &self.step, &self.inv_step);
         let q = [
-            axis_code_value(p[0], m[0], s[0], r[0], top),
-            axis_code_value(p[1], m[1], s[1], r[1], top),
-            axis_code_value(p[2], m[2], s[2], r[2], top),
+            axis_code(p[0], m[0], s[0], r[0], top),
+            axis_code(p[1], m[1], s[1], r[1], top),
+            axis_code(p[2], m[2], s[2], r[2], top),
         ];
         let x = [m[0] + q[0] * s[0], m[1] + q[1] * s[1], m[2] + q[2] * s[2]];
         let code = [code_bits(q[0]), code_bits(q[1]), code_bits(q[2])];
@@ -675,9 +657,17 @@ fn spread(key: u64) -> u64 {
 
 /// Keys per partition that [`group_keys_partitioned`] aims at: its hash table (two to four
 /// times as many slots of 8 or 16 bytes, 0.5 to 2 MiB) then stays in a core's L2 cache,
-/// and the scatter writes few enough partitions at once (32 for a million vertices) for
-/// the TLB: with 8192 keys per partition the scatter took 2.5x longer at 655k vertices.
+/// and the scatter writes few enough partitions at once (32 for a million vertices): with
+/// 8192 keys per partition (128 partitions) the scatter took 2.5x longer at 655k
+/// vertices, likely from TLB misses.
 const PARTITION_TARGET: usize = 32768;
+
+/// The integer `0 <= q < 2^32` held by the f64 `q`, without a conversion instruction.
+#[inline]
+#[must_use]
+fn code_bits(q: f64) -> u32 {
+    (q + ROUNDING_MAGIC).to_bits() as u32
+}
 
 /// A buffer of `len` uninitialized items, for one that is written in full before it is
 /// read: `vec![x; len]` would first fill it (a pass over memory that the kernels then
@@ -1226,17 +1216,36 @@ pub fn cluster<I: VertexIndex>(
         }
     }
 
-    // New ids by prefix count over the used clusters: kept clusters keep their order.
     let unreferenced_vertices = used
         .par_iter()
         .with_min_len(MIN_LEN)
         .filter(|u| !u.load(Ordering::Relaxed))
         .count();
-    let mut new_id = Vec::new();
-    let mut kept: Vec<u32> = Vec::new();
-    if unreferenced_vertices > 0 {
-        new_id = vec![DROPPED; count];
-        kept.reserve(count - unreferenced_vertices);
+    let positions = |codes: &[[u32; 3]]| -> Vec<[f64; 3]> {
+        codes
+            .par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|q| grid.position(q))
+            .collect()
+    };
+    let (vertex_map, out_codes, out_vertices, max_displacement) = if unreferenced_vertices == 0 {
+        // Every cluster is kept, with its number: the code pass measured every vertex.
+        let vertex_map: Vec<i64> = id
+            .par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|&c| i64::from(c))
+            .collect();
+        let out_vertices = positions(&clusters.code);
+        (
+            vertex_map,
+            clusters.code,
+            out_vertices,
+            max_displacement_all,
+        )
+    } else {
+        // New numbers by prefix count over the used clusters: kept ones keep their order.
+        let mut new_id = vec![DROPPED; count];
+        let mut kept: Vec<u32> = Vec::with_capacity(count - unreferenced_vertices);
         for (c, u) in used.iter().enumerate() {
             if u.load(Ordering::Relaxed) {
                 new_id[c] = kept.len() as u32;
@@ -1253,40 +1262,21 @@ pub fn cluster<I: VertexIndex>(
                     new_id[t[2] as usize],
                 ];
             });
-    }
-
-    let vertex_map: Vec<i64> = if unreferenced_vertices == 0 {
-        id.par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|&c| i64::from(c))
-            .collect()
-    } else {
-        id.par_iter()
+        let vertex_map: Vec<i64> = id
+            .par_iter()
             .with_min_len(MIN_LEN)
             .map(|&c| match new_id[c as usize] {
                 DROPPED => -1,
                 k => i64::from(k),
             })
-            .collect()
-    };
-    let merged_vertices = n - count;
-    let out_codes: Vec<[u32; 3]> = if unreferenced_vertices == 0 {
-        clusters.code
-    } else {
-        kept.par_iter()
+            .collect();
+        let out_codes: Vec<[u32; 3]> = kept
+            .par_iter()
             .with_min_len(MIN_LEN)
             .map(|&c| clusters.code[c as usize])
-            .collect()
-    };
-    let out_vertices: Vec<[f64; 3]> = out_codes
-        .par_iter()
-        .with_min_len(MIN_LEN)
-        .map(|q| grid.position(q))
-        .collect();
-    let max_displacement = if unreferenced_vertices == 0 {
-        max_displacement_all
-    } else {
-        vertices
+            .collect();
+        let out_vertices = positions(&out_codes);
+        let max_displacement = vertices
             .par_iter()
             .with_min_len(MIN_LEN)
             .zip(&vertex_map)
@@ -1297,8 +1287,10 @@ pub fn cluster<I: VertexIndex>(
                     0.0
                 }
             })
-            .reduce(|| 0.0, f64::max)
+            .reduce(|| 0.0, f64::max);
+        (vertex_map, out_codes, out_vertices, max_displacement)
     };
+    let merged_vertices = n - count;
 
     Ok(Clustering {
         merged_vertices,
@@ -1369,7 +1361,7 @@ mod tests {
                 }
                 for x in [x.next_down(), x, x.next_up()] {
                     let x = x.clamp(min, min + side);
-                    let fast = axis_code(x, min, step, g.inv_step[0], top);
+                    let fast = code_bits(axis_code(x, min, step, g.inv_step[0], top));
                     assert_eq!(fast, divided_code(x, min, step, top), "x {x:e} on {g:?}");
                     let y = (x - min) / step;
                     near_half += usize::from((y - y.floor() - 0.5).abs() < 1e-9);

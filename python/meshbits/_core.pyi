@@ -74,7 +74,7 @@ def faces_as_u32(
 ) -> npt.NDArray[np.uint32] | None: ...
 def cluster(
     vertices: npt.NDArray[np.float64],
-    faces: npt.NDArray[np.uint32],
+    faces: npt.NDArray[np.uint32] | npt.NDArray[np.int64],
     bits: int,
     grid: str,
     box_min: tuple[float, float, float] | None,

@@ -27,8 +27,8 @@ def as_points(
     """Return ``points`` as a C-ordered float64 ``(n, 3)`` array of finite values.
 
     ``check_finite=False`` skips the NaN/infinity check, for kernels that refuse
-    non-finite coordinates themselves (the caller then names the row, see
-    :func:`as_points` with the check).
+    non-finite coordinates themselves; on such a refusal the caller can run the check
+    to name the row.
 
     Raises
     ------

@@ -152,10 +152,10 @@ def error_surface(
         vv, bb, size, levels=f_levels, colors="white", linewidths=0.9, linestyles="dashed"
     )
     b_size_labels = b_lo + 0.12 * (b_hi - b_lo)
-    size_label_at = [
-        (level / (3 * alpha * b_size_labels + connectivity_bits), b_size_labels)
-        for level in size_lines.levels
-    ]
+    bits_per_vertex = float(
+        model.file_size(b_size_labels, 1.0, alpha=alpha, connectivity_bits=connectivity_bits)
+    )
+    size_label_at = [(level / bits_per_vertex, b_size_labels) for level in size_lines.levels]
     ax.clabel(
         size_lines,
         fmt=lambda x: f"F={x:.0e} b",
