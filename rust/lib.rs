@@ -17,6 +17,7 @@ pub mod closest;
 pub mod complexity;
 pub mod error;
 pub mod hausdorff;
+pub mod pool;
 mod python;
 pub mod quantize;
 pub mod sampling;

@@ -6,7 +6,6 @@
 //! (a `ValueError`); a panic becomes a `RuntimeError` instead of tearing down Python.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::create_exception;
@@ -19,6 +18,7 @@ use crate::bvh::TriangleTree;
 use crate::complexity::{self, Estimator, Tolerances};
 use crate::error::{MeshError, VertexIndex};
 use crate::hausdorff::{self, Options};
+use crate::pool;
 use crate::quantize::{Clustering, Duplicates, Grid, GridKind};
 use crate::quantize::{
     cluster as cluster_kernel, dequantize as dequantize_kernel, quantize as quantize_kernel,
@@ -26,14 +26,11 @@ use crate::quantize::{
 use crate::sampling;
 
 create_exception!(
-    _core,
+    meshbits,
     MeshbitsError,
     PyValueError,
     "Invalid input to a meshbits kernel."
 );
-
-/// Worker threads for kernels: 0 means rayon's global pool.
-static THREADS: AtomicUsize = AtomicUsize::new(0);
 
 impl From<MeshError> for PyErr {
     fn from(err: MeshError) -> PyErr {
@@ -41,32 +38,17 @@ impl From<MeshError> for PyErr {
     }
 }
 
-/// Runs a kernel with the GIL released, on the configured number of threads, turning a
-/// panic into a Python `RuntimeError`.
+/// Runs a kernel with the GIL released on the fork-safe pool of [`crate::pool::run`],
+/// turning a panic into a Python `RuntimeError`: the one path from Python into a kernel.
 fn run_detached<T, F>(py: Python<'_>, kernel: F) -> PyResult<T>
 where
     T: Send,
     F: FnOnce() -> Result<T, MeshError> + Send,
 {
-    let threads = THREADS.load(Ordering::Relaxed);
-    let outcome = py.detach(move || {
-        catch_unwind(AssertUnwindSafe(move || {
-            if threads == 0 {
-                // On a worker of the global pool, not the calling thread: the kernel's
-                // parallel loops then start without a cross-thread handoff, and its serial
-                // steps do not compete with spinning workers for the cores.
-                return rayon::scope(|_| kernel()).map_err(PyErr::from);
-            }
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(|e| PyRuntimeError::new_err(format!("cannot start threads: {e}")))?
-                .install(kernel)
-                .map_err(PyErr::from)
-        }))
-    });
+    let outcome = py.detach(move || catch_unwind(AssertUnwindSafe(move || pool::run(kernel))));
     match outcome {
-        Ok(result) => result,
+        Ok(Ok(result)) => result.map_err(PyErr::from),
+        Ok(Err(threads)) => Err(PyRuntimeError::new_err(threads)),
         Err(panic) => {
             let what = panic
                 .downcast_ref::<&str>()
@@ -595,22 +577,22 @@ fn faces_as_u32<'py>(
     vertex_count: usize,
 ) -> PyResult<Option<Bound<'py, PyArray2<u32>>>> {
     let f = triples(&faces, "faces")?;
-    let converted = py.detach(|| crate::error::indices_from_i64(f, vertex_count));
+    let converted = run_detached(py, || Ok(crate::error::indices_from_i64(f, vertex_count)))?;
     converted
         .map(|rows_u32| rows(py, rows_u32.into_flattened()))
         .transpose()
 }
 
-/// Sets the number of worker threads for every kernel (0 restores rayon's default pool).
+/// Sets the number of worker threads for every kernel (0 restores the default).
 #[pyfunction]
 fn set_num_threads(threads: usize) {
-    THREADS.store(threads, Ordering::Relaxed);
+    pool::set_threads(threads);
 }
 
-/// The number of worker threads set by `set_num_threads` (0: rayon's default pool).
+/// The number of worker threads set by `set_num_threads` (0: the default).
 #[pyfunction]
 fn get_num_threads() -> usize {
-    THREADS.load(Ordering::Relaxed)
+    pool::threads()
 }
 
 #[pymodule]

@@ -62,3 +62,27 @@ def test_thread_setting_round_trips():
         assert call(V, F)["k_raw"] > 0
     finally:
         _core.set_num_threads(previous)
+
+
+def test_stubs_match_the_built_module():
+    """python/meshbits/_core.pyi against the compiled module, by mypy's stubtest: names,
+    signatures, classes."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("mypy")
+    run = subprocess.run(
+        [sys.executable, "-m", "mypy.stubtest", "meshbits._core"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert run.returncode == 0, run.stdout + run.stderr
+
+
+def test_kernel_errors_pickle_across_processes():
+    """Batch workers send refusals back to the parent: the exception must pickle."""
+    import pickle
+
+    error = pickle.loads(pickle.dumps(MeshbitsError("bits out of range")))
+    assert isinstance(error, MeshbitsError) and str(error) == "bits out of range"

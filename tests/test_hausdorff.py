@@ -247,8 +247,9 @@ def test_hausdorff_samples_match_brute_force(a, b, seed):
         np.testing.assert_allclose(d.mean, ref.mean(), rtol=1e-12, atol=atol)
         np.testing.assert_allclose(d.rms, np.sqrt((ref**2).mean()), rtol=1e-12, atol=atol)
         for q in (50, 95, 99):
+            # numpy's linear interpolation, up to how its lerp is rounded (a few ulps).
             np.testing.assert_allclose(
-                getattr(d, f"p{q}"), np.percentile(d.distances, q), rtol=1e-14
+                getattr(d, f"p{q}"), np.percentile(d.distances, q), rtol=1e-13
             )
         # Referenced vertices only, with their exact distances.
         used = np.unique(src[1])

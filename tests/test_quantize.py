@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -619,7 +619,9 @@ def test_cli_quantize_text_report_and_bad_bits(capsys):
     text = capsys.readouterr().out
     assert "5-bit axes grid" in text and "max displacement" in text
     assert main(["quantize", mesh, "--bits", "0"]) == 2
-    assert "bits must be from 1 to 32" in capsys.readouterr().err
+    assert "--bits: must be at least 1, got '0'" in capsys.readouterr().err
+    assert main(["quantize", mesh, "--bits", "33"]) == 2
+    assert "--bits: must be at most 32, got '33'" in capsys.readouterr().err
 
 
 def test_cli_quantize_refuses_to_write_an_empty_mesh(tmp_path, capsys):
@@ -629,3 +631,64 @@ def test_cli_quantize_refuses_to_write_an_empty_mesh(tmp_path, capsys):
     assert main(["quantize", str(path), "--bits", "1", "-o", str(out)]) == 2
     assert "no face survives clustering at 1 bits" in capsys.readouterr().err
     assert not out.exists()
+
+
+# --- the cube grid over a box: points on the far faces stay inside ---------------------
+
+_coordinate = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
+_extent = st.one_of(st.just(0.0), st.floats(1e-9, 1e4, allow_nan=False, allow_infinity=False))
+#: The box of a simplified bunny that broke the GLB and PLY writers: lo + (hi - lo) rounds
+#: to an ulp below hi on the x axis.
+_BUNNY_LEVEL_BOX = (
+    [-0.09472355680328087, 0.03298740088939667, -0.061873599886894226],
+    [0.06105089225045258, 0.18733351625319664, 0.058847996081781144],
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    lo=hnp.arrays(np.float64, 3, elements=_coordinate),
+    extent=hnp.arrays(np.float64, 3, elements=_extent),
+    bits=st.integers(1, 32),
+    fractions=hnp.arrays(np.float64, (6, 3), elements=st.floats(0, 1)),
+)
+@example(
+    lo=np.array(_BUNNY_LEVEL_BOX[0]),
+    extent=np.array(_BUNNY_LEVEL_BOX[1]) - np.array(_BUNNY_LEVEL_BOX[0]),
+    bits=12,
+    fractions=np.full((6, 3), 0.5),
+)
+def test_cube_grid_holds_every_point_of_the_box(lo, extent, bits, fractions):
+    """Points on the faces, edges and far corner of [lo, hi] quantize on the grid built by
+    cube_grid (compress and the GLB/PLY writers build theirs with it)."""
+    hi = np.maximum(lo + extent, lo)
+    corners = np.array([lo, hi])
+    inside = np.clip(lo + fractions * (hi - lo), lo, hi)
+    on_faces = np.concatenate(
+        [
+            np.where(np.arange(3) == axis, corners[end], inside)
+            for axis in range(3)
+            for end in (0, 1)
+        ]
+    )
+    points = np.concatenate([corners, on_faces])
+    origin, side = meshbits.cube_grid(lo, hi)
+    assert side >= (hi - lo).max()
+    assert side <= np.nextafter((hi - lo).max(), np.inf) * (1 + 4 * EPS)
+    q = meshbits.quantize(points, bits, box=(origin, origin + side))
+    assert int(np.asarray(q.codes).max()) <= 2**bits - 1
+
+
+def test_the_bunny_level_box_needs_the_rounded_up_side():
+    lo, hi = map(np.array, _BUNNY_LEVEL_BOX)
+    assert (lo + (hi - lo).max() < hi).any()  # the rounding that broke the writers
+    origin, side = meshbits.cube_grid(lo, hi)
+    assert (origin + side >= hi).all() and side > (hi - lo).max()
+
+
+@pytest.mark.parametrize("fmt", ["glb", "ply", "draco"])
+def test_writers_take_the_extreme_vertex_of_a_simplified_mesh(bunny, fmt):
+    """compress -o x.glb / x.ply on the bunny at 0.002 S used to stop with 'point N lies
+    outside the quantization box'."""
+    result = meshbits.compress(bunny, error=0.002, relative=True, format=fmt, max_iterations=2)
+    assert result.size_bits > 0

@@ -7,8 +7,6 @@ solvers that pick B and V from a size or error budget.
 
 from __future__ import annotations
 
-import os
-
 from . import _core, model
 from ._core import MeshbitsError
 from .complexity import ShapeComplexity, shape_complexity
@@ -30,7 +28,15 @@ from .model import (
     plan_for_size,
     plan_for_vertices,
 )
-from .quantize import Clustered, Quantized, cluster, dequantize, quantize
+from .quantize import (
+    Clustered,
+    Quantized,
+    cluster,
+    cube_grid,
+    dequantize,
+    precision_bits,
+    quantize,
+)
 from .simplify import simplify
 from .threads import get_num_threads, set_num_threads, threads
 
@@ -52,6 +58,7 @@ __all__ = [
     "__version__",
     "cluster",
     "compress",
+    "cube_grid",
     "dequantize",
     "example_mesh_path",
     "get_num_threads",
@@ -62,6 +69,7 @@ __all__ = [
     "plan_for_error",
     "plan_for_size",
     "plan_for_vertices",
+    "precision_bits",
     "quantize",
     "save_mesh",
     "set_num_threads",
@@ -70,8 +78,3 @@ __all__ = [
     "surface_samples",
     "threads",
 ]
-
-if hasattr(os, "register_at_fork"):
-    # A child forked after the parent used rayon's pool can hang on it: children run on a
-    # fresh one-thread pool instead.
-    os.register_at_fork(after_in_child=lambda: _core.set_num_threads(1))

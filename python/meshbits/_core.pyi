@@ -1,10 +1,27 @@
 """Typed stubs for the native module ``meshbits._core`` (see ``rust/python.rs``)."""
 
-from typing import Any
+from typing import Any, final
 
 import numpy as np
 import numpy.typing as npt
 
+__all__ = [
+    "BUILD_PROFILE",
+    "MeshbitsError",
+    "TriangleTree",
+    "__version__",
+    "build_tree",
+    "build_trees",
+    "cluster",
+    "dequantize",
+    "faces_as_u32",
+    "get_num_threads",
+    "hausdorff_directed",
+    "quantize",
+    "set_num_threads",
+    "shape_complexity",
+    "surface_samples",
+]
 __version__: str
 BUILD_PROFILE: str
 
@@ -21,6 +38,7 @@ def shape_complexity(
     ill_cocircular: float,
 ) -> dict[str, Any]: ...
 
+@final
 class TriangleTree:
     @property
     def n_faces(self) -> int: ...

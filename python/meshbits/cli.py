@@ -1,31 +1,51 @@
 """The ``meshbits`` command line.
 
 Every subcommand prints a short human-readable report, or one JSON object with
-``--json``. Exit codes: 0 success, 1 a budget could not be met, 2 bad input (a one-line
-message on stderr, no traceback).
+``--json`` (strict JSON: a value that is not a finite number is ``null``). Exit codes:
+
+- 0: done (``compress``: the budget was met);
+- 1: a budget could not be met (the closest result is still reported, and written);
+- 2: bad arguments, or an input file that cannot be used (one line on stderr);
+- 3: an internal error, a bug in meshbits (one line on stderr; ``--debug`` shows the
+  traceback);
+- 130: interrupted (Ctrl-C).
+
+Arguments and output folders are checked before any file is read.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
+import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
+from . import __version__
 from .complexity import shape_complexity
-from .constants import DUPLICATES, ESTIMATORS, GRIDS, HAUSDORFF_REFINE_BUDGET
+from .constants import (
+    DUPLICATES,
+    ESTIMATORS,
+    FORMAT_MAX_BITS,
+    GRIDS,
+    HAUSDORFF_REFINE_BUDGET,
+    MAX_BITS,
+)
+from .errors import MeshbitsError
 from .hausdorff import hausdorff
-from .io import example_mesh_path, load_mesh, save_mesh
+from .io import check_writable, example_mesh_path, load_mesh, save_mesh
 from .model import METHODS, parse_size, plan_for_error, plan_for_size, plan_for_vertices
 from .quantize import cluster
+from .results import json_ready
 
 __all__ = ["main"]
 
-EXIT_OK, EXIT_UNMET, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_UNMET, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
 class UserError(Exception):
@@ -33,7 +53,80 @@ class UserError(Exception):
 
 
 def _print_json(payload: dict[str, Any]) -> None:
-    print(json.dumps(payload, indent=2, allow_nan=True))
+    print(json.dumps(json_ready(payload), indent=2, allow_nan=False))
+
+
+def _positive_number(text: str) -> float:
+    """An argparse type: a positive finite number, refused with the text as typed."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text!r}")
+    return value
+
+
+def _count(smallest: int) -> Callable[[str], int]:
+    """An argparse type: a whole number of at least ``smallest``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if value < smallest:
+            raise argparse.ArgumentTypeError(f"must be at least {smallest}, got {text!r}")
+        return value
+
+    return parse
+
+
+def _size_text(text: str) -> str:
+    """An argparse type: a size with a unit, checked and kept as typed."""
+    try:
+        parse_size(text)
+    except MeshbitsError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return text
+
+
+def _output(path: Path | None) -> Path | None:
+    """Check an output path before any work (``None``: nothing to write)."""
+    if path is None:
+        return None
+    try:
+        return check_writable(path)
+    except MeshbitsError as err:
+        raise UserError(str(err)) from None
+
+
+def _bits(largest: int) -> Callable[[str], int]:
+    """An argparse type: bits per coordinate, 1 to ``largest``."""
+    whole = _count(1)
+
+    def parse(text: str) -> int:
+        value = whole(text)
+        if value > largest:
+            raise argparse.ArgumentTypeError(f"must be at most {largest}, got {text!r}")
+        return value
+
+    return parse
+
+
+def _check_size_model(args: argparse.Namespace) -> None:
+    """``--alpha`` in (0, 1] and ``--connectivity-bits`` >= 0, when given."""
+    if args.alpha is not None and args.alpha > 1:
+        raise UserError(f"--alpha must be in (0, 1], got {args.alpha:g}")
+    t = args.connectivity_bits
+    if t is not None and not (math.isfinite(t) and t >= 0):
+        raise UserError(f"--connectivity-bits must be a number >= 0, got {t:g}")
+
+
+def _input(path: Path) -> Path:
+    if not path.is_file():
+        raise UserError(f"no such mesh file: {path}")
+    return path
 
 
 def _print_table(title: str, rows: Sequence[tuple[str, Any]]) -> None:
@@ -46,7 +139,7 @@ def _print_table(title: str, rows: Sequence[tuple[str, Any]]) -> None:
 
 
 def _complexity_report(path: Path, args: argparse.Namespace) -> dict[str, Any]:
-    vertices, faces = load_mesh(path)
+    vertices, faces = load_mesh(_input(path))
     result = shape_complexity(
         vertices, faces, estimator=args.estimator, merge_vertices=not args.no_merge
     )
@@ -56,7 +149,7 @@ def _complexity_report(path: Path, args: argparse.Namespace) -> dict[str, Any]:
 def _add_k(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("k", help="shape complexity K of a mesh (paper Sec. 4)")
     p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
-    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere")
+    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere", help="estimator of K")
     p.add_argument("--no-merge", action="store_true", help="do not weld identical vertices")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=_run_k)
@@ -132,15 +225,23 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
         help="simplify + quantize + encode a mesh to meet a budget (paper Sec. 7)",
         description="Compute K, solve for B and V, simplify to V, quantize to B bits, encode "
         "with Draco, measure the Hausdorff error and the real size; adjust and repeat until "
-        "the budget is met. Exit code 1 when it cannot be met.",
+        "the budget is met. Exit code 0 when it is met, 1 when it cannot be (the closest "
+        "result is reported, and written with -o), 2 on bad input. Without -o nothing is "
+        "written.",
     )
     p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
     budget = p.add_mutually_exclusive_group(required=True)
-    budget.add_argument("--size", help="file size budget with a unit: 100KB, 2MiB, 800kbit")
     budget.add_argument(
-        "--error", type=float, help="Hausdorff error budget, in mesh units (or with --relative)"
+        "--size",
+        type=_size_text,
+        help="file size budget with a unit: 100KB, 2MiB, 800kbit (B = bytes)",
     )
-    budget.add_argument("--vertices", type=int, help="vertex count V")
+    budget.add_argument(
+        "--error",
+        type=_positive_number,
+        help="Hausdorff error budget, in mesh units (a fraction of S with --relative)",
+    )
+    budget.add_argument("--vertices", type=_count(4), help="vertex count V (at least 4)")
     p.add_argument(
         "--relative", action="store_true", help="--error is a fraction of S (largest bbox side)"
     )
@@ -150,15 +251,32 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
         type=Path,
         help="output file: .drc (Draco), .glb (glTF, quantized positions), .ply (quantized "
         "PLY); .gltf/.obj/.off/.stl through trimesh (not with --size: their size is not what "
-        "the loop measures)",
+        "the loop measures). Without it nothing is written.",
     )
-    p.add_argument("--lods", type=Path, nargs="+", help="levels of detail to pick from")
-    p.add_argument("--alpha", type=float, help="size model alpha (default: fitted to Draco)")
-    p.add_argument("--connectivity-bits", type=float, help="size model T (default: Draco fit)")
-    p.add_argument("--max-iterations", type=int, default=6)
-    p.add_argument("--samples", type=int, help="Hausdorff samples per mesh (default: scaled)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere")
+    p.add_argument(
+        "--lods", type=Path, nargs="+", help="levels of detail to pick from, instead of simplifying"
+    )
+    p.add_argument(
+        "--alpha",
+        type=_positive_number,
+        help="size model alpha, bits per coordinate bit, in (0, 1] (default: fitted to Draco)",
+    )
+    p.add_argument(
+        "--connectivity-bits",
+        type=float,
+        help="size model T, bits per vertex for connectivity, >= 0 (default: fitted to Draco)",
+    )
+    p.add_argument(
+        "--max-iterations", type=_count(1), default=6, help="passes of the loop at most (default 6)"
+    )
+    p.add_argument(
+        "--samples",
+        type=_count(0),
+        help="Hausdorff area samples per mesh (default: 10 per face of the finer mesh, "
+        "within [10000, 1000000])",
+    )
+    p.add_argument("--seed", type=_count(0), default=0, help="seed of the samples (default 0)")
+    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere", help="estimator of K")
     p.add_argument(
         "--certify",
         action="store_true",
@@ -169,13 +287,22 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_run_compress)
 
 
+def _budget_text(args: argparse.Namespace) -> str:
+    """The budget as the user typed it."""
+    if args.size is not None:
+        return f"--size {args.size}"
+    if args.error is not None:
+        return f"--error {args.error:g}" + (" --relative" if args.relative else "")
+    return f"--vertices {args.vertices}"
+
+
 def _run_compress(args: argparse.Namespace) -> int:
     from .compress import compress
     from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS
-    from .io import save_mesh
 
     if args.relative and args.error is None:
         raise UserError("--relative applies to --error only")
+    _check_size_model(args)
     output = args.output
     suffix = output.suffix.lower() if output else ".drc"
     if suffix not in _FORMATS and suffix not in _TRIMESH_FORMATS:
@@ -186,7 +313,9 @@ def _run_compress(args: argparse.Namespace) -> int:
         raise UserError(
             f"--size needs a .drc, .glb or .ply output; {suffix} sizes are not measured"
         )
-    size = parse_size(args.size) if args.size is not None else None
+    _output(output)
+    for path in [args.mesh, *(args.lods or [])]:
+        _input(path)
     mesh = load_mesh(args.mesh)
     lods = [load_mesh(path) for path in args.lods] if args.lods else None
 
@@ -202,7 +331,7 @@ def _run_compress(args: argparse.Namespace) -> int:
 
     result = compress(
         mesh,
-        size=size,
+        size=None if args.size is None else parse_size(args.size),
         error=args.error,
         vertices=args.vertices,
         relative=args.relative,
@@ -227,6 +356,7 @@ def _run_compress(args: argparse.Namespace) -> int:
     payload = {
         "mesh": str(args.mesh),
         "output": str(output) if output else None,
+        "budget_text": _budget_text(args),
         **result.to_dict(),
     }
     if args.json:
@@ -237,8 +367,13 @@ def _run_compress(args: argparse.Namespace) -> int:
             f"{args.mesh}: {len(mesh[0])} vertices, {len(mesh[1])} faces; "
             f"K = {result.complexity.k:.4g}, S = {result.complexity.grid_size:.6g}",
             [
-                ("budget", f"{result.budget:.6g} ({result.constraint})"),
-                ("first plan", f"B = {first.whole_bits}, V = {first.whole_vertices:.0f}"),
+                ("budget", f"{_budget_text(args)} ({_budget_in_units(result)})"),
+                (
+                    "first plan",
+                    "none (the smallest output)"
+                    if first is None
+                    else f"B = {first.whole_bits}, V = {first.whole_vertices:.0f}",
+                ),
                 (
                     "chosen",
                     f"B = {result.bits}, V = {len(result.vertices)}, {len(result.faces)} faces",
@@ -252,11 +387,25 @@ def _run_compress(args: argparse.Namespace) -> int:
                 ("measured error / S", result.error / result.complexity.grid_size),
                 ("size", f"{result.size_bytes} bytes ({result.format})"),
                 ("passes", len(result.iterations)),
-                ("output", str(output) if output else "(not written: use -o)"),
+                (
+                    "output",
+                    str(output)
+                    + ("" if result.met else " (the closest result: the budget was not met)")
+                    if output
+                    else "(not written: use -o)",
+                ),
             ],
         )
         print(result.message)
     return EXIT_OK if result.met else EXIT_UNMET
+
+
+def _budget_in_units(result: Any) -> str:
+    if result.constraint == "size":
+        return f"{result.budget / 8:.6g} bytes"
+    if result.constraint == "error":
+        return f"{result.budget:.6g} mesh units"
+    return f"{result.budget:.0f} vertices"
 
 
 def _add_calibrate(sub: argparse._SubParsersAction) -> None:
@@ -266,9 +415,21 @@ def _add_calibrate(sub: argparse._SubParsersAction) -> None:
         description="Simplify MESH to a few vertex counts, encode each with Draco at several "
         "bit depths, and fit F = (3 alpha B + T) V (paper Eq. 1) to the measured sizes.",
     )
-    p.add_argument("mesh", type=Path)
-    p.add_argument("--vertices", type=int, nargs="+", default=[500, 2000, 8000])
-    p.add_argument("--bits", type=int, nargs="+", default=[6, 8, 10, 12, 14, 16])
+    p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
+    p.add_argument(
+        "--vertices",
+        type=_count(4),
+        nargs="+",
+        default=[500, 2000, 8000],
+        help="vertex counts to simplify to (default 500 2000 8000)",
+    )
+    p.add_argument(
+        "--bits",
+        type=_bits(FORMAT_MAX_BITS["draco"]),
+        nargs="+",
+        default=[6, 8, 10, 12, 14, 16],
+        help="bits per coordinate to encode each level at (default 6 8 10 12 14 16)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=_run_calibrate)
 
@@ -277,7 +438,9 @@ def _run_calibrate(args: argparse.Namespace) -> int:
     from .encode import encode_draco, fit_size_model
     from .simplify import simplify
 
-    mesh = load_mesh(args.mesh)
+    if len(set(args.bits)) < 2:
+        raise UserError("--bits needs two or more distinct values to fit alpha and T")
+    mesh = load_mesh(_input(args.mesh))
     samples = []
     for target in args.vertices:
         level = simplify(mesh, target)
@@ -332,31 +495,46 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
     p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
     budget = p.add_mutually_exclusive_group(required=True)
     budget.add_argument(
-        "--size", help="file size budget with a unit: 100KB, 2MiB, 800kbit (B = bytes)"
+        "--size",
+        type=_size_text,
+        help="file size budget with a unit: 100KB, 2MiB, 800kbit (B = bytes)",
     )
     budget.add_argument(
         "--error",
-        type=float,
+        type=_positive_number,
         help="error budget, in mesh units (or a fraction of S with --relative)",
     )
-    budget.add_argument("--vertices", type=float, help="vertex count V")
+    budget.add_argument("--vertices", type=_positive_number, help="vertex count V")
     p.add_argument(
         "--relative",
         action="store_true",
         help="--error is a fraction of S, the largest bounding-box side",
     )
-    p.add_argument("--alpha", type=float, default=1.0, help="coordinate compression, (0, 1]")
     p.add_argument(
-        "--connectivity-bits", type=float, default=4.0, help="T, bits per vertex (default 4)"
+        "--alpha",
+        type=_positive_number,
+        default=1.0,
+        help="coordinate compression, bits per coordinate bit, in (0, 1] (default 1)",
     )
-    p.add_argument("--method", choices=METHODS, default="exact")
+    p.add_argument(
+        "--connectivity-bits",
+        type=float,
+        default=4.0,
+        help="T, bits per vertex for connectivity, >= 0 (default 4)",
+    )
+    p.add_argument(
+        "--method",
+        choices=METHODS,
+        default="exact",
+        help="exact: the ridge of the exact E(B, V); asymptotic: the paper's closed forms",
+    )
     p.add_argument(
         "--b0",
         type=_b0_arg,
         default="derived",
         help="B0 of the asymptotic method: derived (1.6412), paper (1.838) or a number",
     )
-    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere")
+    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere", help="estimator of K")
     p.add_argument("--no-merge", action="store_true", help="do not weld identical vertices")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=_run_plan)
@@ -365,6 +543,7 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
 def _run_plan(args: argparse.Namespace) -> int:
     if args.relative and args.error is None:
         raise UserError("--relative applies to --error only")
+    _check_size_model(args)
     report = _complexity_report(args.mesh, args)
     k, grid_size = report["k"], report["grid_size"]
     if not k > 0:
@@ -378,10 +557,18 @@ def _run_plan(args: argparse.Namespace) -> int:
     }
     if args.size is not None:
         budget_text = args.size
-        plan = plan_for_size(parse_size(args.size), k, **options)
+        try:
+            plan = plan_for_size(parse_size(args.size), k, **options)
+        except MeshbitsError as err:
+            raise UserError(f"--size {args.size}: {err}") from None
     elif args.error is not None:
         error = args.error * grid_size if args.relative else args.error
         budget_text = f"{args.error:g}" + (" x S" if args.relative else " (mesh units)")
+        if error >= grid_size:
+            raise UserError(
+                f"--error {args.error:g}{' --relative' if args.relative else ''} is not below "
+                f"the grid size S = {grid_size:.6g}: any single vertex meets it"
+            )
         plan = plan_for_error(error, k, **options)
     else:
         budget_text = f"{args.vertices:g}"
@@ -464,15 +651,15 @@ def _add_hausdorff(sub: argparse._SubParsersAction) -> None:
     p.add_argument("b", type=Path, help="second mesh file")
     p.add_argument(
         "--samples",
-        type=int,
+        type=_count(0),
         default=None,
         help="area samples per mesh, on top of the vertices "
         "(default: 10 per face, clamped to [10000, 1000000])",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the samples (default 0)")
+    p.add_argument("--seed", type=_count(0), default=0, help="seed of the samples (default 0)")
     p.add_argument(
         "--tolerance",
-        type=float,
+        type=_positive_number,
         default=None,
         help="refine until the certified upper bound is within this length of the sampled value",
     )
@@ -484,7 +671,7 @@ def _add_hausdorff(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--refine-budget",
-        type=int,
+        type=_count(0),
         default=HAUSDORFF_REFINE_BUDGET,
         help="largest number of refinement points per direction",
     )
@@ -497,7 +684,10 @@ def _add_hausdorff(sub: argparse._SubParsersAction) -> None:
         "(and OUT_colorbar.png; needs matplotlib)",
     )
     p.add_argument(
-        "--vmax", type=float, default=None, help="distance of the top colour (default: largest)"
+        "--vmax",
+        type=_positive_number,
+        default=None,
+        help="distance of the top colour (default: largest)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -509,6 +699,11 @@ def _progress(message: str) -> None:
 
 
 def _run_hausdorff(args: argparse.Namespace) -> int:
+    _output(args.colors)
+    if args.colors is not None:
+        _output(args.colors.with_name(args.colors.stem + "_colorbar.png"))
+    for path in (args.a, args.b):
+        _input(path)
     meshes = {}
     for name in ("a", "b"):
         path = getattr(args, name)
@@ -562,7 +757,9 @@ def _add_quantize(sub: argparse._SubParsersAction) -> None:
         help="quantize a mesh to B bits per coordinate and cluster its vertices (Sec. 1.1)",
     )
     p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
-    p.add_argument("--bits", type=int, required=True, help="bits per coordinate, 1 to 32")
+    p.add_argument(
+        "--bits", type=_bits(MAX_BITS), required=True, help=f"bits per coordinate, 1 to {MAX_BITS}"
+    )
     p.add_argument("-o", "--output", type=Path, help="write the clustered mesh (PLY, OBJ, ...)")
     p.add_argument("--grid", choices=GRIDS, default="cube", help="one step (cube) or one per axis")
     p.add_argument(
@@ -576,7 +773,8 @@ def _add_quantize(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_quantize(args: argparse.Namespace) -> int:
-    vertices, faces = load_mesh(args.mesh)
+    _output(args.output)
+    vertices, faces = load_mesh(_input(args.mesh))
     result = cluster(vertices, faces, args.bits, grid=args.grid, duplicates=args.duplicates)
     if args.output is not None:
         if result.output_faces == 0:
@@ -640,11 +838,19 @@ def _add_plot(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("mesh", type=Path, help="mesh file")
     p.add_argument("-o", "--output", type=Path, required=True, help="PNG to write")
-    p.add_argument("--alpha", type=float, default=1.0, help="coordinate compression factor")
     p.add_argument(
-        "--connectivity-bits", type=float, default=4.0, help="T, bits per vertex (default 4)"
+        "--alpha",
+        type=_positive_number,
+        default=1.0,
+        help="coordinate compression, bits per coordinate bit, in (0, 1] (default 1)",
     )
-    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere")
+    p.add_argument(
+        "--connectivity-bits",
+        type=float,
+        default=4.0,
+        help="T, bits per vertex for connectivity, >= 0 (default 4)",
+    )
+    p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere", help="estimator of K")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=_run_plot)
 
@@ -652,7 +858,9 @@ def _add_plot(sub: argparse._SubParsersAction) -> None:
 def _run_plot(args: argparse.Namespace) -> int:
     from .plot import error_surface
 
-    vertices, faces = load_mesh(args.mesh)
+    _check_size_model(args)
+    _output(args.output)
+    vertices, faces = load_mesh(_input(args.mesh))
     k = shape_complexity(vertices, faces, estimator=args.estimator)
     n = len(np.unique(np.asarray(faces).ravel()))
     plan = plan_for_vertices(
@@ -697,26 +905,67 @@ _COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
 )
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr, exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="meshbits",
         description="How many vertices, and how many bits per coordinate, should a mesh keep?",
+        epilog="Exit codes: 0 done (budget met), 1 budget not met, 2 bad input, "
+        "3 internal error, 130 interrupted.",
     )
+    parser.add_argument("--version", action="version", version=f"meshbits {__version__}")
+    debug_help = "on an internal error, print the whole traceback"
+    parser.add_argument("--debug", action="store_true", help=debug_help)
     sub = parser.add_subparsers(dest="command", required=True)
     for add in _COMMANDS:
         add(sub)
+    for command in sub.choices.values():
+        # Also after the subcommand; SUPPRESS keeps the main parser's value when absent.
+        command.add_argument(
+            "--debug", action="store_true", default=argparse.SUPPRESS, help=debug_help
+        )
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``meshbits`` program; returns the exit code."""
+    """Entry point of the ``meshbits`` program; returns the exit code (see the module
+    docstring)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as done:  # --help, --version, or a usage error already reported
+        return done.code if isinstance(done.code, int) else EXIT_BAD_INPUT
+    where = f"meshbits {args.command}"
     try:
         return int(args.run(args))
-    except (UserError, ValueError, TypeError, FileNotFoundError, OSError) as err:
-        print(f"meshbits {args.command}: error: {err}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print(f"{where}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (UserError, MeshbitsError, OSError) as err:
+        # Refused input, an unusable file, or a file system that refused a read or write.
+        print(f"{where}: error: {_one_line(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except Exception as err:
+        if args.debug:
+            traceback.print_exc()
+        print(
+            f"{where}: internal error (a bug in meshbits {__version__}, please report it): "
+            f"{type(err).__name__}: {_one_line(err)}"
+            + ("" if args.debug else "; rerun with --debug for the traceback"),
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split())
+    return text or type(err).__name__
 
 
 if __name__ == "__main__":

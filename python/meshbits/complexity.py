@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from . import _core
 from .constants import ESTIMATORS, FLAT_ANGLE, ILL_ANGLE, ILL_COCIRCULAR
+from .errors import MeshbitsError
 from .mesh import MeshLike, as_mesh
+from .results import ArrayResult
 
 __all__ = ["EDGE_KINDS", "ShapeComplexity", "shape_complexity"]
 
@@ -18,8 +20,8 @@ __all__ = ["EDGE_KINDS", "ShapeComplexity", "shape_complexity"]
 EDGE_KINDS = ("curved", "flat", "ill_conditioned", "boundary", "nonmanifold", "degenerate")
 
 
-@dataclass(frozen=True)
-class ShapeComplexity:
+@dataclass(frozen=True, eq=False)
+class ShapeComplexity(ArrayResult):
     """K of one mesh, its normalisations, and what the estimate skipped.
 
     Attributes
@@ -82,15 +84,7 @@ class ShapeComplexity:
     edge_weight: np.ndarray | None = field(default=None, repr=False)
     edge_contribution: np.ndarray | None = field(default=None, repr=False)
 
-    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
-        """JSON-ready dict of the scalars (and, with ``arrays=True``, per-edge lists)."""
-        out = asdict(self)
-        for name in list(out):
-            if name.startswith("edge_"):
-                value = out.pop(name)
-                if arrays and value is not None:
-                    out[name] = value.tolist()
-        return out
+    _arrays = ("edge_vertices", "edge_kind", "edge_radius", "edge_weight", "edge_contribution")
 
 
 def shape_complexity(
@@ -152,7 +146,7 @@ def shape_complexity(
         Non-numeric vertices or non-integer faces.
     """
     if estimator not in ESTIMATORS:
-        raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
+        raise MeshbitsError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
     vertices, triangles = as_mesh(mesh_or_vertices, faces)
     raw = _core.shape_complexity(
         vertices,

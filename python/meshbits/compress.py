@@ -21,16 +21,27 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from . import model
 from .complexity import ShapeComplexity, shape_complexity
-from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS
+from .constants import (
+    DRACO_ALPHA,
+    DRACO_CONNECTIVITY_BITS,
+    FORMAT_MAX_BITS,
+    MODEL_MIN_BITS,
+    MODEL_MIN_VERTICES,
+)
 from .encode import Encoded, encode
+from .errors import MeshbitsError
 from .hausdorff import default_samples, hausdorff
+from .io import write_atomic
 from .mesh import MeshLike, as_mesh
+from .quantize import cube_grid, precision_bits
+from .results import ArrayResult
 from .simplify import Simplifier, closest_level, referenced_vertex_count, simplify
 
 __all__ = ["SLACK", "CompressResult", "Iteration", "compress"]
@@ -40,9 +51,6 @@ SLACK = 0.1
 
 #: With ``certify=True``, the certified bound is refined to this fraction of the budget.
 CERTIFY_TOLERANCE = 0.05
-
-#: Largest bits per coordinate an encoder is asked for (Draco accepts 1..30).
-MAX_BITS = 30
 
 
 @dataclass(frozen=True)
@@ -95,8 +103,8 @@ class Iteration:
         return asdict(self)
 
 
-@dataclass(frozen=True)
-class CompressResult:
+@dataclass(frozen=True, eq=False)
+class CompressResult(ArrayResult):
     """Outcome of :func:`compress`.
 
     Attributes
@@ -133,8 +141,9 @@ class CompressResult:
         The encoded file.
     format : str
         ``"draco"`` or ``"ply"``.
-    plan : model.Allocation
-        The first plan, from the budget itself.
+    plan : model.Allocation or None
+        The first plan, from the budget itself; None when the model has none (a size
+        below a tetrahedron's, an error of S or more): the smallest output is tried.
     complexity : ShapeComplexity
         K of the original.
     iterations : tuple of Iteration
@@ -160,7 +169,7 @@ class CompressResult:
     size_bits: int
     data: bytes = field(repr=False)
     format: str
-    plan: model.Allocation = field(repr=False)
+    plan: model.Allocation | None = field(repr=False)
     complexity: ShapeComplexity = field(repr=False)
     iterations: tuple[Iteration, ...] = field(repr=False)
     level: int | None
@@ -170,16 +179,13 @@ class CompressResult:
     def size_bytes(self) -> int:
         return len(self.data)
 
-    def write(self, path: Any) -> Any:
-        """Write the encoded bytes (for ``.drc`` and ``.ply``)."""
-        from pathlib import Path
+    def write(self, path: str | Path) -> Path:
+        """Write the encoded bytes atomically (see :func:`meshbits.io.write_atomic`)."""
+        return write_atomic(Path(path), self.data)
 
-        path = Path(path)
-        path.write_bytes(self.data)
-        return path
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (no arrays, no bytes)."""
+    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
+        """JSON-ready summary, never the bytes (with ``arrays=True``, also the output's
+        vertices, faces and codes as nested lists)."""
         return {
             "constraint": self.constraint,
             "budget": self.budget,
@@ -197,10 +203,18 @@ class CompressResult:
             "grid_size": self.complexity.grid_size,
             "k": self.complexity.k,
             "level": self.level,
-            "plan": self.plan.to_dict(),
+            "plan": None if self.plan is None else self.plan.to_dict(),
             "iterations": [it.to_dict() for it in self.iterations],
             "seconds": dict(self.seconds),
-        }
+        } | (
+            {
+                "output_vertices": self.vertices.tolist(),
+                "output_faces": self.faces.tolist(),
+                "codes": self.codes.tolist(),
+            }
+            if arrays
+            else {}
+        )
 
 
 def _weld(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -225,19 +239,21 @@ def _grid(
     """Cube grid (origin, side) over the original's box, widened to hold the level: a
     simplifier may move a vertex slightly outside the original's box."""
     level_lo, level_hi = _box(level)
-    lo = np.minimum(original_box[0], level_lo)
-    hi = np.maximum(original_box[1], level_hi)
-    return lo, float((hi - lo).max())
+    return cube_grid(np.minimum(original_box[0], level_lo), np.maximum(original_box[1], level_hi))
 
 
 def _plan(
     constraint: str, target: float, k: float, grid_size: float, alpha: float, t: float
-) -> model.Allocation:
+) -> model.Allocation | None:
+    """The model's plan for the constraint; None where it has none because the smallest
+    mesh it knows already meets the target (an error of S or more) or exceeds it (a size
+    below a tetrahedron's)."""
     options = {"grid_size": grid_size, "alpha": alpha, "connectivity_bits": t}
     if constraint == "size":
-        return model.plan_for_size(target, k, **options)
+        smallest = MODEL_MIN_VERTICES * (3.0 * alpha * MODEL_MIN_BITS + t)
+        return model.plan_for_size(target, k, **options) if target >= smallest else None
     if constraint == "error":
-        return model.plan_for_error(target, k, **options)
+        return model.plan_for_error(target, k, **options) if target < grid_size else None
     return model.plan_for_vertices(target, k, **options)
 
 
@@ -333,12 +349,17 @@ def compress(
         if value is not None
     ]
     if len(given) != 1:
-        raise ValueError(f"give exactly one of size, error, vertices (got {given or 'none'})")
+        raise MeshbitsError(f"give exactly one of size, error, vertices (got {given or 'none'})")
     constraint = given[0]
     if max_iterations < 1:
-        raise ValueError(f"max_iterations must be at least 1, got {max_iterations}")
+        raise MeshbitsError(f"max_iterations must be at least 1, got {max_iterations}")
     if format not in ("draco", "glb", "ply"):
-        raise ValueError(f"format must be 'draco', 'glb' or 'ply', got {format!r}")
+        raise MeshbitsError(f"format must be 'draco', 'glb' or 'ply', got {format!r}")
+    budget = float({"size": size, "error": error, "vertices": vertices}[constraint])
+    if not np.isfinite(budget) or budget <= 0:
+        raise MeshbitsError(
+            f"the {constraint} budget must be a positive finite number, got {budget}"
+        )
     original = _weld(as_mesh(mesh))
     seconds = {"complexity": 0.0, "simplify": 0.0, "encode": 0.0, "hausdorff": 0.0}
 
@@ -347,15 +368,15 @@ def compress(
     seconds["complexity"] = time.perf_counter() - start
     grid_size = complexity.grid_size
     if complexity.k <= 0:
-        raise ValueError("the mesh has K = 0 (flat or all edges skipped): the model has no answer")
+        raise MeshbitsError(
+            "the mesh has K = 0 (flat or all edges skipped): the model has no answer"
+        )
 
-    budget = float({"size": size, "error": error, "vertices": vertices}[constraint])
     if constraint == "error" and relative:
         budget *= grid_size
-    if not np.isfinite(budget) or budget <= 0:
-        raise ValueError(f"the {constraint} budget must be a positive finite number, got {budget}")
     available = referenced_vertex_count(original[1])
     original_box = _box(original)
+    max_bits = min(FORMAT_MAX_BITS[format], precision_bits(original[0], grid_size))
     simplify_to = simplifier or (lambda v, f, n: simplify((v, f), n))
 
     simplified_cache: dict[int, tuple[tuple[np.ndarray, np.ndarray], int | None]] = {}
@@ -394,9 +415,15 @@ def compress(
     for _ in range(max_iterations):
         begin = time.perf_counter()
         plan = _plan(constraint, target, complexity.k, grid_size, alpha, connectivity_bits)
-        first_plan = first_plan or plan
-        bits = int(np.clip(plan.whole_bits, 1, MAX_BITS))
-        planned = int(np.clip(round(plan.whole_vertices), 4, available))
+        if not iterations:
+            first_plan = plan
+        if plan is None:
+            # Below the model's smallest mesh (a size) or above its largest error: the
+            # smallest output there is.
+            bits, planned = int(MODEL_MIN_BITS), int(min(MODEL_MIN_VERTICES, available))
+        else:
+            bits = int(np.clip(plan.whole_bits, 1, max_bits))
+            planned = int(np.clip(round(plan.whole_vertices), 4, available))
         if constraint == "vertices":
             planned = int(min(budget, available))
         if (bits, planned) in tried:
@@ -462,26 +489,14 @@ def compress(
         target = next_target
 
     chosen = best or fallback
-    assert chosen is not None and first_plan is not None
+    assert chosen is not None
     encoded, level, record, origin, size_of_grid = chosen
     met = best is not None
     step = size_of_grid / (2**encoded.bits - 1)
     codes = np.rint((encoded.vertices - origin) / step).astype(
         np.uint16 if encoded.bits <= 16 else np.uint32
     )
-    unit = {"size": "bits", "error": "(mesh units)", "vertices": "vertices"}[constraint]
-    if met:
-        message = (
-            f"met the {constraint} budget {budget:.6g} {unit} with B = {record.bits}, "
-            f"V = {record.vertices}: error {record.measured_error:.4g}, "
-            f"{record.measured_size_bits // 8} bytes"
-        )
-    else:
-        message = (
-            f"could not meet the {constraint} budget {budget:.6g} {unit} in "
-            f"{len(iterations)} passes; closest: B = {record.bits}, V = {record.vertices}, "
-            f"error {record.measured_error:.4g}, {record.measured_size_bits // 8} bytes"
-        )
+    message = _message(constraint, budget, met, record, len(iterations))
     return CompressResult(
         constraint=constraint,
         budget=budget,
@@ -529,6 +544,29 @@ def _next_target(
         if not passing < proposal < failing:
             proposal = float(np.sqrt(passing * failing))
     return proposal
+
+
+def _describe(constraint: str, amount: float) -> str:
+    """A budget or measurement in the user's units: bytes for a size."""
+    if constraint == "size":
+        return f"{amount / 8:.6g} bytes"
+    if constraint == "error":
+        return f"{amount:.6g} (mesh units)"
+    return f"{amount:.6g} vertices"
+
+
+def _message(constraint: str, budget: float, met: bool, record: Iteration, passes: int) -> str:
+    outcome = (
+        f"B = {record.bits}, V = {record.vertices}: error {record.measured_error:.4g} "
+        f"(mesh units), {record.measured_size_bits // 8} bytes"
+    )
+    if met:
+        return f"met the {constraint} budget of {_describe(constraint, budget)} with {outcome}"
+    closest = {"size": "smallest output", "error": "most accurate output"}[constraint]
+    return (
+        f"could not meet the {constraint} budget of {_describe(constraint, budget)} in "
+        f"{passes} passes; the {closest} reached: {outcome}"
+    )
 
 
 def _better(constraint: str, a: Iteration, b: Iteration) -> bool:

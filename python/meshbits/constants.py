@@ -73,3 +73,8 @@ DUPLICATES = ("keep", "oriented", "any")
 
 #: Bits per coordinate accepted by the quantizer (codes are 32-bit integers).
 MIN_BITS, MAX_BITS = 1, 32
+
+#: Largest bits per coordinate each output format holds: Draco quantizes positions to at
+#: most 30 bits; KHR_mesh_quantization stores positions as (unsigned) shorts at most; the
+#: quantized PLY stores float32, whose 24-bit significand cannot hold a finer grid.
+FORMAT_MAX_BITS = {"draco": 30, "glb": 16, "ply": 24}

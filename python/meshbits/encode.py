@@ -15,8 +15,12 @@ from typing import Any
 
 import numpy as np
 
+from .constants import FORMAT_MAX_BITS
+from .errors import MeshbitsError
+from .io import write_atomic
 from .mesh import MeshLike, as_mesh
-from .quantize import quantize
+from .quantize import cube_grid, quantize
+from .results import ArrayResult
 
 __all__ = [
     "ENCODERS",
@@ -34,8 +38,8 @@ __all__ = [
 ENCODERS = {".drc": "draco", ".glb": "glb", ".ply": "ply"}
 
 
-@dataclass(frozen=True)
-class Encoded:
+@dataclass(frozen=True, eq=False)
+class Encoded(ArrayResult):
     """One encoded mesh and what a decoder gets back from it.
 
     Attributes
@@ -65,16 +69,33 @@ class Encoded:
     def size_bits(self) -> int:
         return 8 * len(self.data)
 
+    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
+        """JSON-ready dict: format, bits, size and counts (with ``arrays=True``, also the
+        decoded vertices and faces; never the bytes)."""
+        out: dict[str, Any] = {
+            "format": self.format,
+            "bits": self.bits,
+            "size_bytes": self.size_bytes,
+            "size_bits": self.size_bits,
+            "vertex_count": len(self.vertices),
+            "face_count": len(self.faces),
+        }
+        if arrays:
+            out |= {"vertices": self.vertices.tolist(), "faces": self.faces.tolist()}
+        return out
+
     def write(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.write_bytes(self.data)
-        return path
+        """Write the file's bytes atomically (see :func:`meshbits.io.write_atomic`)."""
+        return write_atomic(Path(path), self.data)
 
 
 def _grid(vertices: np.ndarray, origin: Any, grid_size: Any) -> tuple[np.ndarray, float]:
+    """The cube grid at ``origin`` (default: the vertices' min corner) with side
+    ``grid_size`` (default: the smallest that holds the vertices)."""
     lo = vertices.min(axis=0) if origin is None else np.asarray(origin, dtype=np.float64)
-    size = float((vertices.max(axis=0) - lo).max()) if grid_size is None else float(grid_size)
-    return lo, size
+    if grid_size is None:
+        return cube_grid(lo, np.maximum(vertices.max(axis=0), lo))
+    return lo, float(grid_size)
 
 
 def _referenced(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -85,7 +106,7 @@ def _referenced(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np
 
 def _check_bits(bits: int, high: int) -> int:
     if not isinstance(bits, (int, np.integer)) or not 1 <= bits <= high:
-        raise ValueError(f"bits must be an integer from 1 to {high}, got {bits!r}")
+        raise MeshbitsError(f"bits must be an integer from 1 to {high}, got {bits!r}")
     return int(bits)
 
 
@@ -117,7 +138,7 @@ def encode_draco(
     import DracoPy
 
     vertices, faces = as_mesh(mesh)
-    bits = _check_bits(bits, 30)
+    bits = _check_bits(bits, FORMAT_MAX_BITS["draco"])
     lo, size = _grid(vertices, origin, grid_size)
     data = DracoPy.encode(
         vertices,
@@ -138,7 +159,7 @@ def encode_quantized_ply(
     :func:`meshbits.quantize`) and stored as dequantised float32 (what any PLY reader
     accepts); unreferenced vertices dropped."""
     vertices, faces = as_mesh(mesh)
-    bits = _check_bits(bits, 24)
+    bits = _check_bits(bits, FORMAT_MAX_BITS["ply"])
     vertices, faces = _referenced(vertices, faces)
     lo, size = _grid(vertices, origin, grid_size)
     positions = quantize(vertices, bits, box=(lo, lo + size)).positions.astype(np.float32)
@@ -181,7 +202,7 @@ def encode_quantized_glb(
     import pygltflib as gl
 
     vertices, faces = as_mesh(mesh)
-    bits = _check_bits(bits, 16)
+    bits = _check_bits(bits, FORMAT_MAX_BITS["glb"])
     vertices, faces = _referenced(vertices, faces)
     lo, size = _grid(vertices, origin, grid_size)
     q = quantize(vertices, bits, box=(lo, lo + size))
@@ -258,7 +279,7 @@ def encode(mesh: MeshLike, bits: int, *, format: str = "draco", **grid: Any) -> 
         return encode_quantized_glb(mesh, bits, **grid)
     if format == "ply":
         return encode_quantized_ply(mesh, bits, **grid)
-    raise ValueError(f"format must be 'draco', 'glb' or 'ply', got {format!r}")
+    raise MeshbitsError(f"format must be 'draco', 'glb' or 'ply', got {format!r}")
 
 
 @dataclass(frozen=True)
@@ -295,9 +316,9 @@ def fit_size_model(
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(size_bits, dtype=np.float64)
     if not (b.shape == v.shape == f.shape) or b.ndim != 1:
-        raise ValueError("bits, vertices and size_bits must be 1-D and of equal length")
+        raise MeshbitsError("bits, vertices and size_bits must be 1-D and of equal length")
     if len(np.unique(b)) < 2:
-        raise ValueError("fitting alpha and T needs sizes measured at two or more bit depths")
+        raise MeshbitsError("fitting alpha and T needs sizes measured at two or more bit depths")
     design = np.column_stack([3 * b * v, v]) / f[:, None]
     (alpha, t), *_ = np.linalg.lstsq(design, np.ones_like(f), rcond=None)
     if t < 0:

@@ -24,7 +24,9 @@ from .constants import (
     HAUSDORFF_REFINE_BUDGET,
     HAUSDORFF_SAMPLES_PER_FACE,
 )
+from .errors import MeshbitsError
 from .mesh import MeshLike, as_mesh, as_points
+from .results import ArrayResult
 
 __all__ = [
     "Closest",
@@ -55,7 +57,7 @@ def _check_count(value: Any, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
     if value < 0:
-        raise ValueError(f"{name} must be non-negative, got {value}")
+        raise MeshbitsError(f"{name} must be non-negative, got {value}")
     return int(value)
 
 
@@ -63,12 +65,12 @@ def _check_seed(seed: Any) -> int:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise TypeError(f"seed must be an integer, got {type(seed).__name__}")
     if not 0 <= seed < _U64:
-        raise ValueError(f"seed must be in [0, 2**64), got {seed}")
+        raise MeshbitsError(f"seed must be in [0, 2**64), got {seed}")
     return int(seed)
 
 
-@dataclass(frozen=True)
-class Closest:
+@dataclass(frozen=True, eq=False)
+class Closest(ArrayResult):
     """Nearest points on a mesh, one row per query point.
 
     Attributes
@@ -85,6 +87,15 @@ class Closest:
     distances: np.ndarray
     points: np.ndarray
     faces: np.ndarray
+
+    def to_dict(self, *, arrays: bool = True) -> dict[str, Any]:
+        """JSON-ready dict: the number of queries and the largest distance, and (by
+        default) the three arrays as nested lists."""
+        out: dict[str, Any] = {
+            "count": len(self.distances),
+            "max_distance": float(self.distances.max()) if len(self.distances) else None,
+        }
+        return out | (super().to_dict() if arrays else {})
 
 
 class ClosestPoints:
@@ -147,8 +158,8 @@ class ClosestPoints:
         return f"ClosestPoints({self.n_faces} faces, depth {self._tree.depth})"
 
 
-@dataclass(frozen=True)
-class SurfaceSamples:
+@dataclass(frozen=True, eq=False)
+class SurfaceSamples(ArrayResult):
     """The points a mesh is sampled at (see :func:`surface_samples`).
 
     Attributes
@@ -164,6 +175,17 @@ class SurfaceSamples:
     points: np.ndarray
     faces: np.ndarray
     n_vertex_samples: int
+
+    _arrays = ("points", "faces")
+
+    @property
+    def n_samples(self) -> int:
+        """All samples: vertices and area samples."""
+        return len(self.points)
+
+    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
+        """JSON-ready dict: the counts (with ``arrays=True``, also the points and faces)."""
+        return {"n_samples": self.n_samples} | super().to_dict(arrays=arrays)
 
 
 def surface_samples(
@@ -194,8 +216,8 @@ def surface_samples(
     return SurfaceSamples(raw["points"], sample_faces, int(raw["n_vertex_samples"]))
 
 
-@dataclass(frozen=True)
-class DirectedHausdorff:
+@dataclass(frozen=True, eq=False)
+class DirectedHausdorff(ArrayResult):
     """One direction, ``h(source, target)``, of the sampled Hausdorff distance.
 
     All distances are in the meshes' length unit.
@@ -431,7 +453,7 @@ def hausdorff(
     if tolerance is not None:
         tolerance = float(tolerance)
         if not (tolerance > 0 and math.isfinite(tolerance)):
-            raise ValueError(f"tolerance must be positive and finite, got {tolerance}")
+            raise MeshbitsError(f"tolerance must be positive and finite, got {tolerance}")
         bounds = True
     say = progress or (lambda _message: None)
     meshes = {"A": as_mesh(a), "B": as_mesh(b)}

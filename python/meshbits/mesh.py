@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from . import _core
+from .errors import MeshbitsError
 
 __all__ = ["MeshLike", "as_mesh", "as_points"]
 
@@ -44,9 +45,9 @@ def as_points(
     ):
         raise TypeError(f"{name} must hold real numbers, got dtype {array.dtype}")
     if array.ndim != 2 or array.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (n, 3), got {array.shape}")
+        raise MeshbitsError(f"{name} must have shape (n, 3), got {array.shape}")
     if len(array) == 0 and not allow_empty:
-        raise ValueError(f"{name} is empty: expected at least one point")
+        raise MeshbitsError(f"{name} is empty: expected at least one point")
     out = np.ascontiguousarray(array, dtype=np.float64)
     # Fast path: the per-row reduction below costs ~15x more.
     if not check_finite or np.isfinite(out).all():
@@ -54,7 +55,7 @@ def as_points(
     finite = np.isfinite(out).all(axis=1)
     if not finite.all():
         bad = int(np.flatnonzero(~finite)[0])
-        raise ValueError(
+        raise MeshbitsError(
             f"{name}[{bad}] = {out[bad].tolist()} is not finite "
             f"({int((~finite).sum())} rows have NaN or infinite coordinates)"
         )
@@ -69,9 +70,9 @@ def _as_faces(faces: Any, vertex_count: int, keep_int64: bool = False) -> np.nda
         else:
             raise TypeError(f"faces must hold integer vertex indices, got dtype {array.dtype}")
     if array.ndim != 2 or array.shape[1] != 3:
-        raise ValueError(f"faces must have shape (m, 3) (triangles), got {array.shape}")
+        raise MeshbitsError(f"faces must have shape (m, 3) (triangles), got {array.shape}")
     if len(array) == 0:
-        raise ValueError("mesh is empty: faces has no rows")
+        raise MeshbitsError("mesh is empty: faces has no rows")
     if array.dtype == np.int64 and array.flags.c_contiguous:
         if keep_int64:
             return array
@@ -81,15 +82,15 @@ def _as_faces(faces: Any, vertex_count: int, keep_int64: bool = False) -> np.nda
     low, high = int(array.min()), int(array.max())
     if low < 0:
         row = int(np.flatnonzero((array < 0).any(axis=1))[0])
-        raise ValueError(f"faces[{row}] = {array[row].tolist()} has a negative vertex index")
+        raise MeshbitsError(f"faces[{row}] = {array[row].tolist()} has a negative vertex index")
     if high >= vertex_count:
         row = int(np.flatnonzero((array >= vertex_count).any(axis=1))[0])
-        raise ValueError(
+        raise MeshbitsError(
             f"faces[{row}] = {array[row].tolist()} refers to a vertex out of range "
             f"(there are {vertex_count} vertices)"
         )
     if vertex_count > np.iinfo(np.uint32).max:
-        raise ValueError(f"{vertex_count} vertices exceed the supported maximum of 2**32 - 1")
+        raise MeshbitsError(f"{vertex_count} vertices exceed the supported maximum of 2**32 - 1")
     return np.ascontiguousarray(array, dtype=np.uint32)
 
 

@@ -40,6 +40,7 @@ from .constants import (
     MODEL_MIN_VERTICES,
     PAPER_B0,
 )
+from .errors import MeshbitsError
 
 __all__ = [
     "DERIVED_B0",
@@ -99,7 +100,7 @@ def _require(
     if np.any(bad):
         first = float(array[bad].flat[0])
         where = f" ({int(bad.sum())} of {array.size} values)" if array.ndim else ""
-        raise ValueError(f"{name} must be {what}, got {first!r}{where}")
+        raise MeshbitsError(f"{name} must be {what}, got {first!r}{where}")
     return array
 
 
@@ -132,17 +133,17 @@ def _resolve_b0(b0: float | str) -> float:
             return DERIVED_B0
         if b0 == "paper":
             return PAPER_B0
-        raise ValueError(f"b0 must be 'derived', 'paper' or a number, got {b0!r}")
+        raise MeshbitsError(f"b0 must be 'derived', 'paper' or a number, got {b0!r}")
     if isinstance(b0, bool) or not isinstance(b0, numbers.Real):
         raise TypeError(f"b0 must be 'derived', 'paper' or a number, got {b0!r}")
     if not math.isfinite(float(b0)):
-        raise ValueError(f"b0 must be finite, got {b0!r}")
+        raise MeshbitsError(f"b0 must be finite, got {b0!r}")
     return float(b0)
 
 
 def _check_method(method: str) -> None:
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        raise MeshbitsError(f"method must be one of {METHODS}, got {method!r}")
 
 
 # --- the model, unchecked kernels --------------------------------------------------------
@@ -729,7 +730,7 @@ def plan_for_size(
     f = _scalar(_positive("size_bits", size_bits), "size_bits")
     smallest = MODEL_MIN_VERTICES * (3.0 * p.alpha * MODEL_MIN_BITS + p.connectivity_bits)
     if f < smallest:
-        raise ValueError(
+        raise MeshbitsError(
             f"size_bits = {f:g} bits cannot hold even a tetrahedron: {MODEL_MIN_VERTICES:g} "
             f"vertices at {MODEL_MIN_BITS:g} bit per coordinate need {smallest:g} bits"
         )
@@ -800,7 +801,7 @@ def plan_for_error(
     budget = _scalar(_positive("error", error), "error")
     e = budget / p.grid_size
     if e >= 1.0:
-        raise ValueError(
+        raise MeshbitsError(
             f"error = {budget:g} must be below the grid size S = {p.grid_size:g} "
             "(a single vertex is within S of every point of the grid)"
         )
@@ -875,7 +876,7 @@ def plan_for_vertices(
     p = _setup(k, grid_size, alpha, connectivity_bits, method, b0)
     v = _scalar(_positive("vertices", vertices), "vertices")
     if v < MODEL_MIN_VERTICES:
-        raise ValueError(
+        raise MeshbitsError(
             f"vertices = {v:g}: a closed triangle mesh needs at least "
             f"{MODEL_MIN_VERTICES:g} vertices (a tetrahedron)"
         )
@@ -939,7 +940,7 @@ def parse_size(text: str) -> float:
         raise TypeError(f"size must be a string such as '100KB', got {text!r}")
     match = _SIZE.match(text)
     if match is None:
-        raise ValueError(
+        raise MeshbitsError(
             f"cannot read size {text!r}: expected a number and a unit, such as 100KB, 2MiB "
             "or 80000bits"
         )
@@ -954,21 +955,21 @@ def parse_size(text: str) -> float:
         if unit.endswith("B"):
             prefix, per_unit = lowered[:-1], 8.0
         elif unit.endswith("b"):
-            raise ValueError(
+            raise MeshbitsError(
                 f"size {text!r} is ambiguous: lower-case 'b' could mean bits or bytes; write "
                 f"{mantissa}{unit[:-1]}B for bytes or {mantissa}{unit[:-1]}bit for bits"
             )
         else:
-            raise ValueError(
+            raise MeshbitsError(
                 f"size {text!r} needs a unit: B or bytes (8 bits), or bit/bits, with an "
                 "optional prefix k, M, G, T (1000) or Ki, Mi, Gi, Ti (1024)"
             )
     if prefix not in _PREFIXES:
-        raise ValueError(
+        raise MeshbitsError(
             f"size {text!r}: unknown prefix {unit[: len(prefix)]!r} (use k, M, G, T or Ki, Mi, "
             "Gi, Ti)"
         )
     size = value * _PREFIXES[prefix] * per_unit
     if not (math.isfinite(size) and size > 0):
-        raise ValueError(f"size {text!r} must be positive and finite")
+        raise MeshbitsError(f"size {text!r} must be positive and finite")
     return size

@@ -12,6 +12,7 @@ Figures are drawn on the Agg canvas (no display, no pyplot global state). Instal
 
 from __future__ import annotations
 
+import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +22,10 @@ import numpy as np
 
 from . import model
 from .constants import MODEL_MIN_VERTICES
+from .errors import MeshbitsError
+from .io import write_atomic
 from .mesh import MeshLike, as_mesh
+from .results import ArrayResult
 
 __all__ = ["ErrorMap", "colorbar", "error_map", "error_surface", "vertex_colors"]
 
@@ -42,7 +46,7 @@ def _figure(size_px: tuple[int, int], dpi: int) -> Any:
 
     width, height = (int(n) for n in size_px)
     if width <= 0 or height <= 0 or dpi <= 0:
-        raise ValueError(f"size_px and dpi must be positive, got {size_px} and {dpi}")
+        raise MeshbitsError(f"size_px and dpi must be positive, got {size_px} and {dpi}")
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
     FigureCanvasAgg(fig)
     return fig
@@ -52,9 +56,9 @@ def _range(name: str, value: Sequence[float], low: float) -> tuple[float, float]
     try:
         lo, hi = (float(x) for x in value)
     except (TypeError, ValueError) as err:
-        raise ValueError(f"{name} must be a (low, high) pair of numbers, got {value!r}") from err
+        raise MeshbitsError(f"{name} must be a (low, high) pair of numbers, got {value!r}") from err
     if not (np.isfinite(lo) and np.isfinite(hi) and low <= lo < hi):
-        raise ValueError(f"{name} must satisfy {low:g} <= low < high (finite), got {value!r}")
+        raise MeshbitsError(f"{name} must satisfy {low:g} <= low < high (finite), got {value!r}")
     return lo, hi
 
 
@@ -113,12 +117,12 @@ def error_surface(
     """
     k = float(k)
     if not (np.isfinite(k) and k > 0):
-        raise ValueError(f"k must be positive and finite, got {k}")
+        raise MeshbitsError(f"k must be positive and finite, got {k}")
     v_lo, v_hi = _range("vertices", vertices, MODEL_MIN_VERTICES)
     b_lo, b_hi = _range("bits", bits, 0.0)
     resolution = int(resolution)
     if resolution < 8:
-        raise ValueError(f"resolution must be at least 8, got {resolution}")
+        raise MeshbitsError(f"resolution must be at least 8, got {resolution}")
     v = np.geomspace(v_lo, v_hi, resolution)
     b = np.linspace(b_lo, b_hi, resolution)
     vv, bb = np.meshgrid(v, b)
@@ -190,8 +194,15 @@ def error_surface(
     )
     ax.legend(loc="upper left", fontsize=8)
     if path is not None:
-        fig.savefig(Path(path), dpi=dpi, format="png")
+        _save_png(fig, path, dpi)
     return fig
+
+
+def _save_png(fig: Any, path: str | Path, dpi: int) -> Path:
+    """Render ``fig`` as PNG and write it atomically."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, dpi=dpi, format="png")
+    return write_atomic(Path(path), buffer.getvalue())
 
 
 def _decades(values: np.ndarray, *, halves: bool) -> list[float]:
@@ -206,8 +217,8 @@ def _decades(values: np.ndarray, *, halves: bool) -> list[float]:
     return sorted(x for x in levels if lo < x < hi)
 
 
-@dataclass(frozen=True)
-class ErrorMap:
+@dataclass(frozen=True, eq=False)
+class ErrorMap(ArrayResult):
     """What :func:`error_map` wrote.
 
     Attributes
@@ -228,6 +239,8 @@ class ErrorMap:
     vmin: float
     vmax: float
 
+    _arrays = ("colors",)
+
 
 def vertex_colors(
     distances: Any, *, cmap: str = "viridis", vmin: float = 0.0, vmax: float | None = None
@@ -240,23 +253,23 @@ def vertex_colors(
     matplotlib = _matplotlib()
     d = np.asarray(distances, dtype=np.float64)
     if d.ndim != 1:
-        raise ValueError(f"distances must be one-dimensional, got shape {d.shape}")
+        raise MeshbitsError(f"distances must be one-dimensional, got shape {d.shape}")
     if not np.all(np.isfinite(d)):
-        raise ValueError("distances contain NaN or infinite values")
+        raise MeshbitsError("distances contain NaN or infinite values")
     vmin = float(vmin)
     if vmax is None:
         vmax = float(d.max()) if len(d) else vmin
     vmax = float(vmax)
     if not np.isfinite(vmin) or not np.isfinite(vmax):
-        raise ValueError(f"vmin and vmax must be finite, got {vmin} and {vmax}")
+        raise MeshbitsError(f"vmin and vmax must be finite, got {vmin} and {vmax}")
     if vmax < vmin:
-        raise ValueError(f"vmax ({vmax}) must not be below vmin ({vmin})")
+        raise MeshbitsError(f"vmax ({vmax}) must not be below vmin ({vmin})")
     if vmax == vmin:  # all distances equal: show them with the bottom colour
         vmax = vmin + 1.0
     try:
         colormap = matplotlib.colormaps[cmap]
     except KeyError as err:
-        raise ValueError(f"unknown colour map {cmap!r}") from err
+        raise MeshbitsError(f"unknown colour map {cmap!r}") from err
     unit = np.clip((d - vmin) / (vmax - vmin), 0.0, 1.0)
     rgba = colormap(unit)
     return np.rint(np.asarray(rgba) * 255.0).astype(np.uint8), vmin, vmax
@@ -284,9 +297,7 @@ def colorbar(
         ax, cmap=cmap, norm=colors.Normalize(vmin=vmin, vmax=vmax), orientation="vertical"
     )
     bar.set_label(label)
-    path = Path(path)
-    fig.savefig(path, dpi=dpi, format="png")
-    return path
+    return _save_png(fig, path, dpi)
 
 
 def error_map(
@@ -332,15 +343,14 @@ def error_map(
     vertices, faces = as_mesh(mesh)
     d = np.asarray(distances, dtype=np.float64)
     if d.shape != (len(vertices),):
-        raise ValueError(
+        raise MeshbitsError(
             f"distances must have one value per vertex ({len(vertices)}), got shape {d.shape}"
         )
     if np.any(d < 0):
-        raise ValueError("distances must be non-negative")
+        raise MeshbitsError("distances must be non-negative")
     colors, vmin, vmax_used = vertex_colors(d, cmap=cmap, vmin=0.0, vmax=vmax)
     out = trimesh.Trimesh(vertices, faces, vertex_colors=colors, process=False)
-    path = Path(path)
-    out.export(path, file_type="ply")
+    path = write_atomic(Path(path), out.export(file_type="ply"))
     bar = None
     if colorbar_path is not None:
         bar = colorbar(colorbar_path, cmap=cmap, vmin=vmin, vmax=vmax_used, label=label)

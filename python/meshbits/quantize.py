@@ -7,17 +7,28 @@ clustering (the paper's reference [20]). The kernels are in ``rust/quantize.rs``
 
 from __future__ import annotations
 
+import math
 import numbers
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from . import _core
 from .constants import CONVENTIONS, DUPLICATES, GRIDS, MAX_BITS, MIN_BITS
+from .errors import MeshbitsError
 from .mesh import MeshLike, as_mesh, as_points
+from .results import ArrayResult
 
-__all__ = ["Clustered", "Quantized", "cluster", "dequantize", "quantize"]
+__all__ = [
+    "Clustered",
+    "Quantized",
+    "cluster",
+    "cube_grid",
+    "dequantize",
+    "precision_bits",
+    "quantize",
+]
 
 _GRID_DOC = """grid
         ``"cube"`` (default): one step ``S / (2^B - 1)`` on every axis, ``S`` the largest
@@ -38,13 +49,13 @@ def _check_bits(bits: Any) -> int:
     if isinstance(bits, bool) or not isinstance(bits, numbers.Integral):
         raise TypeError(f"bits must be an integer, got {bits!r}")
     if not MIN_BITS <= int(bits) <= MAX_BITS:
-        raise ValueError(f"bits must be from {MIN_BITS} to {MAX_BITS}, got {int(bits)}")
+        raise MeshbitsError(f"bits must be from {MIN_BITS} to {MAX_BITS}, got {int(bits)}")
     return int(bits)
 
 
 def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
     if value not in choices:
-        raise ValueError(f"{name} must be one of {choices}, got {value!r}")
+        raise MeshbitsError(f"{name} must be one of {choices}, got {value!r}")
     return str(value)
 
 
@@ -56,8 +67,56 @@ def _as_box(box: Any) -> tuple[tuple[float, ...], tuple[float, ...]] | tuple[Non
     except (TypeError, ValueError) as err:
         raise TypeError(f"box must be (min, max), two 3-vectors of numbers: {err}") from err
     if corners.shape != (2, 3):
-        raise ValueError(f"box must be (min, max), two 3-vectors, got shape {corners.shape}")
+        raise MeshbitsError(f"box must be (min, max), two 3-vectors, got shape {corners.shape}")
     return tuple(corners[0].tolist()), tuple(corners[1].tolist())
+
+
+def cube_grid(lo: Any, hi: Any) -> tuple[np.ndarray, float]:
+    """Origin and side ``S`` of the cube grid over the box ``[lo, hi]`` (length).
+
+    ``S`` is the largest side ``max(hi - lo)``, raised by the fewest float64 ulps for which
+    the grid's far corner ``lo + S``, computed in float64 as the quantizer computes it,
+    reaches ``hi`` on every axis: ``lo + (hi - lo)`` can round an ulp below ``hi``, which
+    would leave a point on the box's far face outside the grid. Pass
+    ``box=(origin, origin + S)`` to :func:`quantize` or :func:`cluster`.
+    """
+    low = np.asarray(lo, dtype=np.float64).reshape(3)
+    high = np.asarray(hi, dtype=np.float64).reshape(3)
+    if not (np.isfinite(low).all() and np.isfinite(high).all() and (low <= high).all()):
+        raise MeshbitsError(f"box must have finite corners with min <= max, got {low}, {high}")
+    side = float((high - low).max())
+    while (low + side < high).any():
+        side = float(np.nextafter(side, np.inf))
+    return low, side
+
+
+def precision_bits(vertices: Any, grid_size: float | None = None) -> int:
+    """Bits per coordinate beyond which a cube grid of side ``S`` cannot add accuracy to
+    ``vertices``: the smallest ``B`` whose step ``S / (2^B - 1)`` is at most the spacing of
+    their floating-point numbers at their largest magnitude.
+
+    Coordinates that float32 holds exactly (every PLY, STL and glTF file of float32
+    positions, even when read as float64) are spaced ``2^-23`` of that magnitude apart, so
+    a mesh whose box touches its largest coordinate carries about 24 bits: more bits cost
+    bytes and encoder memory (Draco allocates ``2^B``-sized tables) and move no vertex
+    closer to where the file put it. float64 coordinates carry about 53.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        The coordinates (length).
+    grid_size : float, optional
+        ``S`` (length); default: the largest side of the vertices' bounding box.
+    """
+    array = as_points(vertices, "vertices")
+    if grid_size is None:
+        grid_size = float((array.max(axis=0) - array.min(axis=0)).max())
+    largest = float(np.abs(array).max())
+    if not grid_size > 0 or largest == 0:
+        return MIN_BITS
+    exact32 = np.array_equal(array.astype(np.float32).astype(np.float64), array)
+    spacing = float(np.spacing(np.float32(largest) if exact32 else largest))
+    return max(MIN_BITS, math.ceil(math.log2(grid_size / spacing + 1.0)))
 
 
 def _grid_fields(raw: dict[str, Any]) -> dict[str, Any]:
@@ -69,21 +128,8 @@ def _grid_fields(raw: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _scalars(obj: Any, arrays: bool, big: tuple[str, ...]) -> dict[str, Any]:
-    out = asdict(obj)
-    for name in list(out):
-        value = out[name]
-        if name in big:
-            out.pop(name)
-            if arrays:
-                out[name] = value.tolist()
-        elif isinstance(value, np.ndarray):
-            out[name] = value.tolist()
-    return out
-
-
 @dataclass(frozen=True, eq=False)
-class Quantized:
+class Quantized(ArrayResult):
     """Points quantized on a grid (paper Sec. 1.1).
 
     Attributes
@@ -128,14 +174,11 @@ class Quantized:
     grid: str
     convention: str
 
-    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
-        """JSON-ready dict: scalars and 3-vectors (with ``arrays=True``, also ``codes`` and
-        ``positions`` as nested lists)."""
-        return _scalars(self, arrays, ("codes", "positions"))
+    _arrays = ("codes", "positions")
 
 
 @dataclass(frozen=True, eq=False)
-class Clustered:
+class Clustered(ArrayResult):
     """A mesh after vertex clustering on a grid (Rossignac-Borrel).
 
     Attributes
@@ -201,10 +244,7 @@ class Clustered:
     convention: str
     duplicates: str
 
-    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
-        """JSON-ready dict: counts, grid and errors (with ``arrays=True``, also the
-        mesh, codes and maps as nested lists)."""
-        return _scalars(self, arrays, ("vertices", "faces", "codes", "vertex_map", "face_index"))
+    _arrays = ("vertices", "faces", "codes", "vertex_map", "face_index")
 
 
 def quantize(
@@ -296,15 +336,15 @@ def dequantize(codes: Any, origin: Any, step: Any) -> np.ndarray:
     if array.dtype == bool or not np.issubdtype(array.dtype, np.integer):
         raise TypeError(f"codes must be integers, got dtype {array.dtype}")
     if array.ndim != 2 or array.shape[1] != 3:
-        raise ValueError(f"codes must have shape (n, 3), got {array.shape}")
+        raise MeshbitsError(f"codes must have shape (n, 3), got {array.shape}")
     if array.dtype == np.uint64 and array.size and int(array.max()) > np.iinfo(np.int64).max:
-        raise ValueError("codes above 2**63 - 1 are not supported")
+        raise MeshbitsError("codes above 2**63 - 1 are not supported")
     vectors = []
     for name, value in (("origin", origin), ("step", step)):
         try:
             vector = np.broadcast_to(np.asarray(value, dtype=np.float64), (3,))
         except (TypeError, ValueError) as err:
-            raise ValueError(f"{name} must be a 3-vector of numbers: {err}") from err
+            raise MeshbitsError(f"{name} must be a 3-vector of numbers: {err}") from err
         vectors.append(tuple(vector.tolist()))
     return _core.dequantize(np.ascontiguousarray(array, dtype=np.int64), vectors[0], vectors[1])
 

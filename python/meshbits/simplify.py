@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from .errors import MeshbitsError
 from .mesh import MeshLike, as_mesh
 
 __all__ = ["Simplifier", "closest_level", "referenced_vertex_count", "simplify"]
@@ -90,7 +91,7 @@ def simplify(
     vertices, faces = as_mesh(mesh)
     target_vertices = int(target_vertices)
     if target_vertices < 4:
-        raise ValueError(f"target_vertices must be at least 4, got {target_vertices}")
+        raise MeshbitsError(f"target_vertices must be at least 4, got {target_vertices}")
     used = referenced_vertex_count(faces)
     if target_vertices >= used:
         return _compact(vertices, faces.astype(np.int64))
@@ -113,7 +114,7 @@ def closest_level(levels: Sequence[MeshLike], target_vertices: float) -> int:
     """Index of the level of detail whose referenced vertex count is closest to the target
     (on a log scale, so 1,000 is as far from 2,000 as from 500); ties go to the finer one."""
     if len(levels) == 0:
-        raise ValueError("lods is empty: give at least one level of detail")
+        raise MeshbitsError("lods is empty: give at least one level of detail")
     counts = np.array([referenced_vertex_count(as_mesh(level)[1]) for level in levels])
     distance = np.abs(np.log(counts) - np.log(max(float(target_vertices), 1.0)))
     best = np.flatnonzero(distance == distance.min())

@@ -1,0 +1,316 @@
+"""What the program promises a user or a pipeline: budgets it cannot meet, where and how it
+writes, exit codes, strict JSON, and results that compare and serialise."""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+from pathlib import Path
+
+import DracoPy
+import numpy as np
+import pytest
+import trimesh
+
+import meshbits
+from meshbits import cli
+from meshbits.cli import main
+from meshbits.encode import encode_draco
+from meshbits.io import write_atomic
+
+DATA = Path(__file__).parent / "data"
+BUNNY = str(DATA / "bunny.ply")
+SMALL = str(DATA / "bunny_res4.ply")
+compress_module = importlib.import_module("meshbits.compress")
+
+
+def _strict_json(text: str) -> dict:
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"non-standard JSON constant {constant}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def _one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+# --- bits: capped by the format and by the input's precision -----------------------------
+
+
+@pytest.mark.parametrize(("suffix", "largest"), [(".drc", 24), (".glb", 16), (".ply", 24)])
+def test_a_huge_size_budget_stops_at_the_input_precision(tmp_path, capsys, suffix, largest):
+    """bunny.ply holds float32 coordinates: 24 bits of them. --size 1GB used to climb to
+    B = 27-30 (4.1 GB of Draco tables) or stop mid-loop on the GLB/PLY bit limits."""
+    out = tmp_path / f"out{suffix}"
+    assert main(["compress", BUNNY, "--size", "1GB", "-o", str(out), "--json", "--quiet"]) == 0
+    report = _strict_json(capsys.readouterr().out)
+    assert report["met"] and report["bits"] <= largest
+    assert all(it["bits"] <= largest for it in report["iterations"])
+    assert out.stat().st_size == report["size_bytes"]
+
+
+def test_precision_bits_of_float32_and_float64_coordinates(bunny):
+    vertices = bunny[0]
+    assert meshbits.precision_bits(vertices) == 24
+    assert meshbits.precision_bits(vertices + 1e-9) >= 50  # no longer float32 values
+    assert meshbits.precision_bits(np.zeros((3, 3))) == 1
+
+
+def test_an_error_budget_below_the_input_precision_is_reported_unmet(tmp_path, capsys):
+    out = tmp_path / "out.drc"
+    assert main(["compress", SMALL, "--error", "1e-12", "-o", str(out), "--json"]) == 1
+    report = _strict_json(capsys.readouterr().out)
+    assert not report["met"] and report["bits"] == meshbits.precision_bits(
+        meshbits.load_mesh(SMALL)[0]
+    )
+    assert out.exists()
+
+
+# --- budgets that cannot be met ----------------------------------------------------------
+
+
+def test_an_unreachable_size_writes_the_smallest_output_and_exits_1(tmp_path, capsys):
+    out = tmp_path / "tiny.drc"
+    assert main(["compress", SMALL, "--size", "10B", "-o", str(out), "--quiet"]) == 1
+    text = capsys.readouterr().out
+    assert "--size 10B" in text and "10 bytes" in text
+    assert "the smallest output reached" in text
+    decoded = DracoPy.decode(out.read_bytes())
+    assert len(decoded.faces) > 0
+    smallest = out.stat().st_size
+    assert f"{smallest} bytes" in text
+
+
+def test_an_unreachable_size_in_python_keeps_the_smallest_result():
+    mesh = meshbits.load_mesh(SMALL)
+    result = meshbits.compress(mesh, size=80, max_iterations=4)
+    assert not result.met
+    assert result.size_bytes == min(it.measured_size_bits for it in result.iterations) // 8
+    assert "smallest output" in result.message and "bytes" in result.message
+
+
+@pytest.mark.parametrize(
+    ("argv", "echo"),
+    [
+        (["--error", "-0.002", "--relative"], "'-0.002'"),
+        (["--error", "nan"], "'nan'"),
+        (["--size=-5KB"], "-5KB"),
+        (["--size", "12 parsecs"], "parsecs"),
+        (["--vertices", "3"], "'3'"),
+    ],
+)
+def test_budgets_are_refused_as_typed_before_the_mesh_is_read(capsys, monkeypatch, argv, echo):
+    monkeypatch.setattr(cli, "load_mesh", _must_not_load)
+    assert main(["compress", "/no/such/mesh.ply", *argv]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert echo in line and "no such mesh" not in line
+
+
+def _must_not_load(*_args: object, **_kwargs: object) -> None:
+    raise AssertionError("the mesh was read before the arguments were checked")
+
+
+# --- writes ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["compress", BUNNY, "--error", "0.01", "-o", "{missing}/out.drc"],
+        ["quantize", BUNNY, "--bits", "8", "-o", "{missing}/out.ply"],
+        ["hausdorff", BUNNY, SMALL, "--colors", "{missing}/out.ply"],
+        ["plot", BUNNY, "-o", "{missing}/fig.png"],
+        ["demo", "-o", "{missing}/out.drc"],
+    ],
+)
+def test_a_missing_output_folder_is_refused_before_any_work(tmp_path, capsys, monkeypatch, argv):
+    monkeypatch.setattr(cli, "load_mesh", _must_not_load)
+    missing = tmp_path / "not" / "there"
+    argv = [a.replace("{missing}", str(missing)) for a in argv]
+    assert main(argv) == 2
+    assert "does not exist" in _one_line(capsys.readouterr().err)
+
+
+def test_two_gltf_outputs_in_one_folder_keep_their_own_buffers(tmp_path, capsys):
+    first = tmp_path / "first.gltf"
+    second = tmp_path / "second.gltf"
+    expected = []
+    for source, path in ((SMALL, first), (BUNNY, second)):
+        argv = ["compress", source, "--vertices", "300", "-o", str(path), "--quiet", "--json"]
+        assert main(argv) == 0
+        expected.append(_strict_json(capsys.readouterr().out)["vertices"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "first.bin",
+        "first.gltf",
+        "second.bin",
+        "second.gltf",
+    ]
+    counts = [len(trimesh.load(p, force="mesh", process=False).vertices) for p in (first, second)]
+    assert counts == expected
+
+
+def test_write_atomic_keeps_the_old_file_when_the_write_fails(tmp_path, monkeypatch):
+    target = tmp_path / "out.drc"
+    target.write_bytes(b"the earlier result")
+
+    def broken_replace(*_args: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", broken_replace)
+    with pytest.raises(OSError, match="No space left"):
+        write_atomic(target, b"x" * 1000)
+    assert target.read_bytes() == b"the earlier result"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.drc"]  # no temporary left behind
+
+
+def test_a_failed_write_is_exit_2_and_leaves_no_partial_file(tmp_path, capsys, monkeypatch):
+    target = tmp_path / "out.drc"
+    target.write_bytes(b"the earlier result")
+
+    def broken_replace(*_args: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", broken_replace)
+    assert main(["compress", SMALL, "--vertices", "200", "-o", str(target), "--quiet"]) == 2
+    assert "No space left" in _one_line(capsys.readouterr().err)
+    assert target.read_bytes() == b"the earlier result"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.drc"]
+
+
+# --- exit codes --------------------------------------------------------------------------
+
+
+def _raise(error: BaseException):
+    def run(*_args: object, **_kwargs: object) -> None:
+        raise error
+
+    return run
+
+
+@pytest.mark.parametrize(
+    "error", [ZeroDivisionError("division by zero"), ValueError("a bug"), TypeError("a bug")]
+)
+def test_a_bug_is_an_internal_error_exit_3(capsys, monkeypatch, error):
+    """ValueError and TypeError used to read as bad input (exit 2)."""
+    monkeypatch.setattr(compress_module, "compress", _raise(error))
+    assert main(["compress", SMALL, "--vertices", "100"]) == 3
+    line = _one_line(capsys.readouterr().err)
+    assert "internal error" in line and type(error).__name__ in line and "--debug" in line
+
+
+def test_debug_prints_the_traceback(capsys, monkeypatch):
+    monkeypatch.setattr(compress_module, "compress", _raise(ZeroDivisionError("x")))
+    assert main(["compress", SMALL, "--vertices", "100", "--debug"]) == 3
+    assert "Traceback (most recent call last)" in capsys.readouterr().err
+
+
+def test_ctrl_c_exits_130(capsys, monkeypatch):
+    monkeypatch.setattr(compress_module, "compress", _raise(KeyboardInterrupt()))
+    assert main(["compress", SMALL, "--vertices", "100"]) == 130
+    assert "interrupted" in _one_line(capsys.readouterr().err)
+
+
+def test_refused_data_is_exit_2(tmp_path, capsys):
+    path = tmp_path / "nan.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n")
+    assert main(["k", str(path)]) == 2
+    assert "not finite" in _one_line(capsys.readouterr().err)
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"meshbits {meshbits.__version__}"
+
+
+def test_every_option_has_help():
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if a.choices and "compress" in a.choices)
+    for name, command in sub.choices.items():
+        for action in command._actions:
+            assert action.help, f"meshbits {name} {action.option_strings or action.dest}"
+
+
+def test_compress_help_says_nothing_is_written_without_output(capsys):
+    assert main(["compress", "--help"]) == 0
+    assert "Without -o nothing is written" in " ".join(capsys.readouterr().out.split())
+
+
+# --- strict JSON -------------------------------------------------------------------------
+
+
+def test_json_output_never_holds_nan_or_infinity(capsys):
+    cli._print_json({"a": float("nan"), "b": [np.inf, np.float32(2.5)], "c": np.arange(2)})
+    assert _strict_json(capsys.readouterr().out) == {"a": None, "b": [None, 2.5], "c": [0, 1]}
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["k", SMALL],
+        ["plan", SMALL, "--size", "10B"],
+        ["plan", SMALL, "--error", "0.5", "--relative"],
+        ["quantize", SMALL, "--bits", "2"],
+        ["hausdorff", SMALL, SMALL, "--bounds"],
+        ["compress", SMALL, "--size", "10B", "--quiet"],
+    ],
+)
+def test_every_json_report_is_strict(capsys, argv):
+    main([*argv, "--json"])
+    _strict_json(capsys.readouterr().out)
+
+
+# --- results: to_dict and equality -------------------------------------------------------
+
+
+def test_every_public_result_has_a_json_ready_to_dict(bunny):
+    small = meshbits.load_mesh(SMALL)
+    results = [
+        meshbits.ClosestPoints(small).query(bunny[0][:10]),
+        meshbits.surface_samples(small, samples=100),
+        encode_draco(small, 10),
+        meshbits.quantize(small[0], 8),
+        meshbits.cluster(small, 6),
+        meshbits.shape_complexity(small, per_edge=True),
+        meshbits.hausdorff(small, meshbits.cluster(small, 6), samples=500),
+        meshbits.compress(small, vertices=200),
+    ]
+    for result in results:
+        for arrays in (False, True):
+            json.dumps(result.to_dict(arrays=arrays), allow_nan=False)
+    assert results[0].to_dict()["count"] == 10
+    assert results[1].to_dict()["n_samples"] == len(results[1].points)
+    assert results[2].to_dict()["size_bytes"] == results[2].size_bytes
+
+
+def test_results_holding_arrays_compare_by_value():
+    small = meshbits.load_mesh(SMALL)
+    pairs = [
+        (lambda: meshbits.quantize(small[0], 8), lambda: meshbits.quantize(small[0], 9)),
+        (lambda: meshbits.cluster(small, 6), lambda: meshbits.cluster(small, 7)),
+        (
+            lambda: meshbits.ClosestPoints(small).query(small[0][:20] + 0.01),
+            lambda: meshbits.ClosestPoints(small).query(small[0][:20] + 0.02),
+        ),
+        (
+            lambda: meshbits.surface_samples(small, samples=100, seed=1),
+            lambda: meshbits.surface_samples(small, samples=100, seed=2),
+        ),
+        (lambda: encode_draco(small, 10), lambda: encode_draco(small, 11)),
+        (
+            lambda: meshbits.shape_complexity(small, per_edge=True),
+            lambda: meshbits.shape_complexity(small, per_edge=True, estimator="dihedral"),
+        ),
+        (
+            lambda: meshbits.hausdorff(small, meshbits.cluster(small, 6), samples=300),
+            lambda: meshbits.hausdorff(small, meshbits.cluster(small, 5), samples=300),
+        ),
+    ]
+    for make, make_other in pairs:
+        a, b, c = make(), make(), make_other()
+        assert a == b and not (a != b)
+        assert a != c and not (a == c)
+        assert a != "something else"
