@@ -29,7 +29,7 @@ def main() -> None:
         mesh = load_mesh(path)
         own = []
         for target in (500, 2000, 8000):
-            level = simplify(mesh, target)
+            level = simplify(mesh, target).mesh
             for bits in range(6, 17, 2):
                 encoded = encode_draco(level, bits)
                 own.append((bits, len(encoded.vertices), encoded.size_bits))

@@ -375,16 +375,49 @@ pub fn directed(
     }
     check_finite(vertices)?;
     check_indices(faces, vertices.len())?;
-    if let Some(tol) = opts.tolerance
-        && (tol.is_nan() || tol <= 0.0 || tol.is_infinite())
-    {
-        return Err(MeshError::Parameter(format!(
+    check_tolerance(opts)?;
+    let samples = surface_samples(vertices, faces, tree.centre(), opts.area_samples, opts.seed)?;
+    directed_from_samples(vertices, faces, &samples, tree, opts)
+}
+
+fn check_tolerance(opts: &Options) -> Result<(), MeshError> {
+    match opts.tolerance {
+        Some(tol) if !(tol > 0.0 && tol.is_finite()) => Err(MeshError::Parameter(format!(
             "tolerance must be positive and finite, got {tol}"
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// [`directed`] with the source's samples given (drawn with [`surface_samples`] from
+/// `vertices` and `faces`, in any frame): a mesh measured against several targets is
+/// sampled once. `opts.area_samples` and `opts.seed` are not used.
+pub fn directed_from_samples(
+    vertices: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    samples: &SurfaceSamples,
+    tree: &TriangleTree,
+    opts: &Options,
+) -> Result<Directed, MeshError> {
+    if tree.is_empty() {
+        return Err(MeshError::Empty("the target mesh has no faces".into()));
+    }
+    check_tolerance(opts)?;
+    if samples.offsets.len() != faces.len() + 1 {
+        return Err(MeshError::Parameter(format!(
+            "the samples were drawn from a mesh of {} faces, not {}",
+            samples.offsets.len().saturating_sub(1),
+            faces.len()
         )));
     }
     let centre = tree.centre();
-    let samples: SurfaceSamples =
-        surface_samples(vertices, faces, centre, opts.area_samples, opts.seed)?;
+    let recentred;
+    let samples = if samples.centre == centre {
+        samples
+    } else {
+        recentred = samples.recentred(centre);
+        &recentred
+    };
     let points = &samples.points;
     let nv = samples.vertex_count();
     let bounds_wanted = opts.bounds || opts.tolerance.is_some();
@@ -642,6 +675,40 @@ mod tests {
             truth,
             b.upper
         );
+    }
+
+    #[test]
+    fn samples_drawn_once_measure_every_target() {
+        let (va, fa) = square(9, 0.0);
+        let mut targets = Vec::new();
+        for shift in [0.1, 0.7, -0.4] {
+            let (mut vb, fb) = square(5, 0.2);
+            for (i, p) in vb.iter_mut().enumerate() {
+                p[0] += shift;
+                p[2] += 0.05 * ((i * 7919) % 13) as f64 / 13.0;
+            }
+            targets.push(TriangleTree::build(&vb, &fb).unwrap());
+        }
+        let opts = Options {
+            tolerance: Some(1e-4),
+            ..options()
+        };
+        let samples = surface_samples(&va, &fa, DVec3::new(3.0, -1.0, 0.5), 2000, 1).unwrap();
+        for tree in &targets {
+            let fresh = directed(&va, &fa, tree, &opts).unwrap();
+            let reused = directed_from_samples(&va, &fa, &samples, tree, &opts).unwrap();
+            assert!(
+                (fresh.max - reused.max).abs() <= 1e-14,
+                "{} {}",
+                fresh.max,
+                reused.max
+            );
+            let (fu, ru) = (fresh.bounds.unwrap().upper, reused.bounds.unwrap().upper);
+            assert!((fu - ru).abs() <= 1e-14, "{fu} {ru}");
+            assert_eq!(fresh.n_samples, reused.n_samples);
+        }
+        let other = surface_samples(&va, &fa[1..], DVec3::ZERO, 100, 1).unwrap();
+        assert!(directed_from_samples(&va, &fa, &other, &targets[0], &opts).is_err());
     }
 
     #[test]

@@ -21,6 +21,7 @@ pub mod pool;
 mod python;
 pub mod quantize;
 pub mod sampling;
+pub mod simplify;
 
 pub use error::MeshError;
 

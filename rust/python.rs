@@ -7,7 +7,10 @@
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
-use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
+    PyUntypedArrayMethods,
+};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -24,6 +27,7 @@ use crate::quantize::{
     cluster as cluster_kernel, dequantize as dequantize_kernel, quantize as quantize_kernel,
 };
 use crate::sampling;
+use crate::simplify as simplifier;
 
 create_exception!(
     meshbits,
@@ -277,6 +281,11 @@ fn hausdorff_directed<'py>(
         return_samples,
     };
     let r = run_detached(py, || hausdorff::directed(v, f, &tree.tree, &opts))?;
+    directed_dict(py, r)
+}
+
+/// The raw result of one direction as the Python layer reads it.
+fn directed_dict(py: Python<'_>, r: hausdorff::Directed) -> PyResult<Bound<'_, PyDict>> {
     let out = PyDict::new(py);
     out.set_item("n_samples", r.n_samples)?;
     out.set_item("n_vertex_samples", r.n_vertex_samples)?;
@@ -330,6 +339,153 @@ fn surface_samples<'py>(
     out.set_item("points", triples_to_array(py, points)?)?;
     out.set_item("faces", sample_faces.into_pyarray(py))?;
     out.set_item("n_vertex_samples", nv)?;
+    Ok(out)
+}
+
+/// A mesh and its sample set, drawn once and measured against any number of targets
+/// (see `meshbits.hausdorff.Reference`).
+#[pyclass(frozen, name = "SampledMesh", module = "meshbits._core")]
+struct PySampledMesh {
+    vertices: Vec<[f64; 3]>,
+    faces: Vec<[u32; 3]>,
+    samples: sampling::SurfaceSamples,
+}
+
+#[pymethods]
+impl PySampledMesh {
+    /// Samples: referenced vertices plus area samples.
+    #[getter]
+    fn n_samples(&self) -> usize {
+        self.samples.points.len()
+    }
+
+    /// How many of the samples are vertices.
+    #[getter]
+    fn n_vertex_samples(&self) -> usize {
+        self.samples.vertex_count()
+    }
+}
+
+/// Samples a mesh once (referenced vertices, then `samples` seeded area samples).
+#[pyfunction]
+fn sample_mesh<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, u32>,
+    samples: usize,
+    seed: u64,
+) -> PyResult<PySampledMesh> {
+    let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
+    let s = run_detached(py, || {
+        let (lo, hi) = complexity::referenced_bbox(v, f);
+        let centre = (glam::DVec3::from_array(lo) + glam::DVec3::from_array(hi)) * 0.5;
+        sampling::surface_samples(v, f, centre, samples, seed)
+    })?;
+    Ok(PySampledMesh {
+        vertices: v.to_vec(),
+        faces: f.to_vec(),
+        samples: s,
+    })
+}
+
+/// One-sided sampled Hausdorff distance from a sampled mesh to a tree, reusing its samples.
+#[pyfunction]
+#[pyo3(signature = (source, tree, statistics, bounds, tolerance, refine_budget, return_samples))]
+fn hausdorff_from_samples<'py>(
+    py: Python<'py>,
+    source: &PySampledMesh,
+    tree: &PyTriangleTree,
+    statistics: bool,
+    bounds: bool,
+    tolerance: Option<f64>,
+    refine_budget: usize,
+    return_samples: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let opts = Options {
+        area_samples: 0,
+        seed: 0,
+        statistics,
+        bounds,
+        tolerance,
+        refine_budget,
+        return_samples,
+    };
+    let r = run_detached(py, || {
+        hausdorff::directed_from_samples(
+            &source.vertices,
+            &source.faces,
+            &source.samples,
+            &tree.tree,
+            &opts,
+        )
+    })?;
+    directed_dict(py, r)
+}
+
+/// meshoptimizer's simplification (see `rust/simplify.rs`): a dict with `vertex_ids`
+/// (kept input vertices, uint32), `faces` ((m, 3) uint32 over them) and `error` (length).
+#[pyfunction]
+#[pyo3(signature = (vertices, faces, target_faces, target_error, lock_border, locked, attributes, weights, prune, weld, update_positions))]
+#[allow(clippy::too_many_arguments)]
+fn simplify<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, u32>,
+    target_faces: Option<usize>,
+    target_error: Option<f64>,
+    lock_border: bool,
+    locked: Option<PyReadonlyArray1<'py, bool>>,
+    attributes: Option<PyReadonlyArray2<'py, f32>>,
+    weights: Option<PyReadonlyArray1<'py, f32>>,
+    prune: bool,
+    weld: bool,
+    update_positions: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
+    let locked = locked
+        .as_ref()
+        .map(|l| l.as_slice())
+        .transpose()
+        .map_err(|e| PyValueError::new_err(format!("locked is not contiguous: {e}")))?;
+    let attributes = match (&attributes, &weights) {
+        (Some(values), Some(weights)) => Some(simplifier::Attributes {
+            values: values
+                .as_slice()
+                .map_err(|e| PyValueError::new_err(format!("attributes: {e}")))?,
+            weights: weights
+                .as_slice()
+                .map_err(|e| PyValueError::new_err(format!("weights: {e}")))?,
+        }),
+        (None, None) => None,
+        _ => {
+            return Err(PyValueError::new_err(
+                "give attributes and weights together",
+            ));
+        }
+    };
+    let request = simplifier::Request {
+        target_faces,
+        target_error,
+        lock_border,
+        locked,
+        attributes,
+        prune,
+        weld,
+        update_positions,
+    };
+    let s = run_detached(py, || simplifier::simplify(v, f, &request))?;
+    let kept = s.vertex_ids.len();
+    let out = PyDict::new(py);
+    out.set_item("vertex_ids", s.vertex_ids.into_pyarray(py))?;
+    out.set_item("faces", rows(py, s.faces.into_flattened())?)?;
+    out.set_item("error", s.error)?;
+    if let Some(positions) = s.positions {
+        out.set_item("positions", triples_to_array(py, positions)?)?;
+    }
+    if let Some(values) = s.attributes {
+        let k = values.len() / kept.max(1);
+        out.set_item("attributes", values.into_pyarray(py).reshape([kept, k])?)?;
+    }
     Ok(out)
 }
 
@@ -568,6 +724,27 @@ fn cluster<'py>(
     Ok(out)
 }
 
+/// Faces with every vertex replaced by the smallest-index vertex of identical coordinates
+/// (see `adjacency::weld_identical`), and how many vertices were merged.
+#[pyfunction]
+fn weld<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, u32>,
+) -> PyResult<(Bound<'py, PyArray2<u32>>, usize)> {
+    let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
+    let (welded, merged) = run_detached(py, || {
+        crate::error::check_indices(f, v.len())?;
+        let w = crate::adjacency::weld_identical(v);
+        let faces: Vec<[u32; 3]> = f
+            .iter()
+            .map(|t| t.map(|i| w.canonical[i as usize]))
+            .collect();
+        Ok((faces, w.merged))
+    })?;
+    Ok((rows(py, welded.into_flattened())?, merged))
+}
+
 /// `(m, 3)` int64 faces as C-ordered uint32, checked against `vertex_count` in one
 /// parallel pass; `None` when an index is out of range (Python names the face).
 #[pyfunction]
@@ -613,10 +790,15 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(build_trees, m)?)?;
     m.add_function(wrap_pyfunction!(hausdorff_directed, m)?)?;
     m.add_function(wrap_pyfunction!(surface_samples, m)?)?;
+    m.add_class::<PySampledMesh>()?;
+    m.add_function(wrap_pyfunction!(sample_mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(hausdorff_from_samples, m)?)?;
+    m.add_function(wrap_pyfunction!(simplify, m)?)?;
     m.add_function(wrap_pyfunction!(quantize, m)?)?;
     m.add_function(wrap_pyfunction!(dequantize, m)?)?;
     m.add_function(wrap_pyfunction!(cluster, m)?)?;
     m.add_function(wrap_pyfunction!(faces_as_u32, m)?)?;
+    m.add_function(wrap_pyfunction!(weld, m)?)?;
     m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(get_num_threads, m)?)?;
     Ok(())

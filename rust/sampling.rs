@@ -139,6 +139,8 @@ pub struct SurfaceSamples {
     /// `offsets[i] .. offsets[i + 1]` index the area samples of face `i`, counted from
     /// the first area sample.
     pub offsets: Vec<usize>,
+    /// The centre subtracted from the points (length).
+    pub centre: DVec3,
 }
 
 impl SurfaceSamples {
@@ -147,6 +149,19 @@ impl SurfaceSamples {
     #[must_use]
     pub fn vertex_count(&self) -> usize {
         self.vertex_ids.len()
+    }
+
+    /// The same samples in the frame centred on `centre` (`p + self.centre - centre`;
+    /// rounding of order 1e-16 of the coordinates).
+    #[must_use]
+    pub fn recentred(&self, centre: DVec3) -> SurfaceSamples {
+        let shift = self.centre - centre;
+        SurfaceSamples {
+            points: self.points.par_iter().map(|p| *p + shift).collect(),
+            vertex_ids: self.vertex_ids.clone(),
+            offsets: self.offsets.clone(),
+            centre,
+        }
     }
 
     /// Face of each sample; `u32::MAX` for vertex samples.
@@ -211,6 +226,7 @@ pub fn surface_samples(
         points,
         vertex_ids,
         offsets,
+        centre,
     })
 }
 

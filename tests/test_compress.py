@@ -13,7 +13,7 @@ from conftest import load
 import meshbits
 from meshbits.cli import main
 from meshbits.compress import compress
-from meshbits.encode import decode_draco
+from meshbits.encode import decode_draco, encode_draco
 from meshbits.hausdorff import default_samples
 from meshbits.simplify import simplify
 
@@ -37,7 +37,13 @@ def test_error_budget_is_met_and_checked_independently(name, relative_error):
     decoded = decode_draco(result.data)
     again = meshbits.hausdorff(mesh, decoded, seed=12345, samples=200_000)
     assert again.distance <= 1.05 * budget
-    assert len(result.vertices) < len(np.unique(mesh[1]))  # it did simplify
+    # No larger than the original quantized to the fewest bits that meet the budget.
+    grid = meshbits.cube_grid(mesh[0].min(axis=0), mesh[0].max(axis=0))
+    for bits in range(6, 20):
+        whole = encode_draco(mesh, bits, origin=grid[0], grid_size=grid[1])
+        if meshbits.hausdorff(mesh, (whole.vertices, whole.faces)).distance <= budget:
+            break
+    assert result.size_bytes <= whole.size_bytes
 
 
 @pytest.mark.parametrize(("name", "size_bytes"), [("spot", 6_000), ("bunny.ply", 20_000)])
@@ -49,9 +55,11 @@ def test_size_budget_is_met_by_the_real_file(name, size_bytes):
     assert len(result.data) >= 0.6 * size_bytes  # the budget is used, not wasted
     vertices, faces = decode_draco(result.data)
     np.testing.assert_array_equal(vertices, result.vertices)
-    samples = default_samples(max(len(mesh[1]), len(faces)))
+    samples = default_samples(len(mesh[1]))
     again = meshbits.hausdorff(mesh, (vertices, faces), samples=samples, statistics=False)
-    assert result.error == again.distance  # same seed, same samples: the same number
+    # Same seed, same samples: the same number, up to the rounding of measuring the
+    # original's stored samples in the output's frame.
+    assert result.error == pytest.approx(again.distance, rel=1e-12)
 
 
 def test_vertex_budget_uses_the_models_bits():
@@ -71,14 +79,14 @@ def test_certified_error_budget():
 
 
 def test_unreachable_budget_says_so():
-    result = compress(SPOT, size=8 * 200, max_iterations=3)
+    result = compress(SPOT, size=8 * 30, max_iterations=3)
     assert not result.met
     assert "could not meet" in result.message
     assert len(result.iterations) <= 3
 
 
 def test_lods_pick_the_level_closest_to_the_plan():
-    levels = [simplify(SPOT, n) for n in (300, 1000, 2500)]
+    levels = [simplify(SPOT, n).mesh for n in (300, 1000, 2500)]
     result = compress(SPOT, vertices=900, lods=levels)
     assert result.level == 1
     planned = result.iterations[0].planned_vertices
@@ -217,7 +225,7 @@ def test_compress_cli_exit_1_when_unmet(capsys):
             "compress",
             str(meshbits.example_mesh_path()),
             "--size",
-            "200B",
+            "30B",
             "--json",
             "--quiet",
             "--max-iterations",

@@ -16,6 +16,7 @@ from .hausdorff import (
     ClosestPoints,
     DirectedHausdorff,
     Hausdorff,
+    Reference,
     SurfaceSamples,
     hausdorff,
     surface_samples,
@@ -37,7 +38,7 @@ from .quantize import (
     precision_bits,
     quantize,
 )
-from .simplify import simplify
+from .simplify import Simplified, simplify
 from .threads import get_num_threads, set_num_threads, threads
 
 __version__: str = _core.__version__
@@ -53,7 +54,9 @@ __all__ = [
     "Iteration",
     "MeshbitsError",
     "Quantized",
+    "Reference",
     "ShapeComplexity",
+    "Simplified",
     "SurfaceSamples",
     "__version__",
     "cluster",

@@ -8,6 +8,7 @@ import numpy.typing as npt
 __all__ = [
     "BUILD_PROFILE",
     "MeshbitsError",
+    "SampledMesh",
     "TriangleTree",
     "__version__",
     "build_tree",
@@ -17,10 +18,14 @@ __all__ = [
     "faces_as_u32",
     "get_num_threads",
     "hausdorff_directed",
+    "hausdorff_from_samples",
     "quantize",
+    "sample_mesh",
     "set_num_threads",
     "shape_complexity",
+    "simplify",
     "surface_samples",
+    "weld",
 ]
 __version__: str
 BUILD_PROFILE: str
@@ -90,6 +95,9 @@ def dequantize(
 def faces_as_u32(
     faces: npt.NDArray[np.int64], vertex_count: int
 ) -> npt.NDArray[np.uint32] | None: ...
+def weld(
+    vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32]
+) -> tuple[npt.NDArray[np.uint32], int]: ...
 def cluster(
     vertices: npt.NDArray[np.float64],
     faces: npt.NDArray[np.uint32] | npt.NDArray[np.int64],
@@ -99,6 +107,39 @@ def cluster(
     box_max: tuple[float, float, float] | None,
     centered: bool,
     duplicates: str,
+) -> dict[str, Any]: ...
+
+@final
+class SampledMesh:
+    @property
+    def n_samples(self) -> int: ...
+    @property
+    def n_vertex_samples(self) -> int: ...
+
+def sample_mesh(
+    vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32], samples: int, seed: int
+) -> SampledMesh: ...
+def hausdorff_from_samples(
+    source: SampledMesh,
+    tree: TriangleTree,
+    statistics: bool,
+    bounds: bool,
+    tolerance: float | None,
+    refine_budget: int,
+    return_samples: bool,
+) -> dict[str, Any]: ...
+def simplify(
+    vertices: npt.NDArray[np.float64],
+    faces: npt.NDArray[np.uint32],
+    target_faces: int | None,
+    target_error: float | None,
+    lock_border: bool,
+    locked: npt.NDArray[np.bool_] | None,
+    attributes: npt.NDArray[np.float32] | None,
+    weights: npt.NDArray[np.float32] | None,
+    prune: bool,
+    weld: bool,
+    update_positions: bool,
 ) -> dict[str, Any]: ...
 def set_num_threads(threads: int) -> None: ...
 def get_num_threads() -> int: ...

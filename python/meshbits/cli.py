@@ -443,7 +443,7 @@ def _run_calibrate(args: argparse.Namespace) -> int:
     mesh = load_mesh(_input(args.mesh))
     samples = []
     for target in args.vertices:
-        level = simplify(mesh, target)
+        level = simplify(mesh, target).mesh
         for bits in args.bits:
             encoded = encode_draco(level, bits)
             samples.append((bits, len(encoded.vertices), encoded.size_bits))

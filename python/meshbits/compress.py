@@ -1,106 +1,44 @@
-"""The paper's algorithm (Sec. 7) end to end: plan, simplify, quantize, encode, measure.
+"""The paper's algorithm (Sec. 7) end to end: plan, simplify, quantize, encode, measure,
+adjust, until the budget is met at the fewest bytes (or the least error) found.
 
-1. Take the constraint: a vertex count V, a file size F, or an error E.
-2. Compute the shape complexity K (:func:`meshbits.shape_complexity`).
-3. Solve for B and V (:mod:`meshbits.model`).
-4. Pick the level of detail closest to V, or simplify to about V vertices.
-5. Quantize to B bits on the bounding-box grid and encode (Draco by default).
-6. Measure the real error (sampled Hausdorff distance to the *original*) and the real
-   file size; when a budget is missed, rescale the constraint given to the solver by
-   budget / measured and repeat.
-
-The loop also steps the other way: a result that meets its budget with room to spare
-(more than :data:`SLACK` of it unused) is retried with a looser constraint, and the best
-result that meets the budget is kept. It stops when the budget is met tightly, after
-``max_iterations``, or when a plan repeats; :attr:`CompressResult.met` says plainly
-whether the budget was met.
+1. Take the constraint: an error E, a file size F, or a vertex count V.
+2. Compute the shape complexity K (:func:`meshbits.shape_complexity`) and the first plan
+   (:mod:`meshbits.model`).
+3. Search (:mod:`meshbits.search`): each pass plans a candidate (a mesh: the original, a
+   simplification, or a given level of detail; and B) from the measurements so far,
+   simplifies (meshoptimizer, driven by an error target), quantizes to B bits on the
+   cube grid, encodes (Draco by default), and measures the real size and the Hausdorff
+   distance to the original (sampled; its BVH and samples are built once).
+4. Keep the best result that meets the budget; :attr:`CompressResult.met` says plainly
+   whether one did.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from . import model
+from . import _core, model
 from .complexity import ShapeComplexity, shape_complexity
-from .constants import (
-    DRACO_ALPHA,
-    DRACO_CONNECTIVITY_BITS,
-    FORMAT_MAX_BITS,
-    MODEL_MIN_BITS,
-    MODEL_MIN_VERTICES,
-)
-from .encode import Encoded, encode
+from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, FORMAT_MAX_BITS
 from .errors import MeshbitsError
-from .hausdorff import default_samples, hausdorff
+from .hausdorff import Reference, default_samples
 from .io import write_atomic
 from .mesh import MeshLike, as_mesh
-from .quantize import cube_grid, precision_bits
+from .quantize import precision_bits
 from .results import ArrayResult
-from .simplify import Simplifier, closest_level, referenced_vertex_count, simplify
+from .search import Iteration, Search, run_search
+from .simplify import METHODS, Simplifier
 
-__all__ = ["SLACK", "CompressResult", "Iteration", "compress"]
-
-#: A budget counts as met tightly when less than this fraction of it is left unused.
-SLACK = 0.1
+__all__ = ["CERTIFY_TOLERANCE", "CompressResult", "Iteration", "compress"]
 
 #: With ``certify=True``, the certified bound is refined to this fraction of the budget.
 CERTIFY_TOLERANCE = 0.05
-
-
-@dataclass(frozen=True)
-class Iteration:
-    """One pass of steps 3-6.
-
-    Attributes
-    ----------
-    target : float
-        The constraint handed to the solver in this pass (bits for size, mesh length units
-        for error, a count for vertices); the first pass uses the budget itself.
-    bits : int
-        Whole bits per coordinate B used.
-    planned_vertices : int
-        V from the plan.
-    vertices, faces : int
-        Vertex and face counts of the encoded mesh.
-    predicted_error : float
-        The model's E at (B, planned V) (length).
-    predicted_size_bits : float
-        The model's F at (B, planned V) (bits).
-    measured_error : float
-        Sampled symmetric Hausdorff distance between the original and the decoded output
-        (length).
-    measured_size_bits : int
-        Size of the encoded file (bits).
-    measured_error_upper : float or None
-        With ``certify=True``: a certified upper bound on the true Hausdorff distance
-        (length); ``measured_error`` is then the refined sampled lower bound.
-    met : bool
-        Whether this pass met the budget.
-    seconds : float
-        Wall time of the pass.
-    """
-
-    target: float
-    bits: int
-    planned_vertices: int
-    vertices: int
-    faces: int
-    predicted_error: float
-    predicted_size_bits: float
-    measured_error: float
-    measured_size_bits: int
-    measured_error_upper: float | None
-    met: bool
-    seconds: float
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,7 +87,13 @@ class CompressResult(ArrayResult):
     iterations : tuple of Iteration
         Every pass, in order.
     level : int or None
-        With ``lods``, the index of the level used.
+        With ``lods``, the index of the level used; None for a mesh compress made.
+    source : str
+        What the output's mesh is: ``"original"`` (not simplified), ``"meshopt"``,
+        ``"vertices"`` (a vertex-count simplification) or ``"lod"``.
+    max_bits : int
+        The largest B the search could use: the output format's limit, or the input's
+        precision (:func:`meshbits.precision_bits`), whichever is smaller.
     seconds : dict
         Wall time by phase: ``complexity``, ``simplify``, ``encode``, ``hausdorff``.
     """
@@ -174,6 +118,8 @@ class CompressResult(ArrayResult):
     iterations: tuple[Iteration, ...] = field(repr=False)
     level: int | None
     seconds: dict[str, float] = field(repr=False)
+    source: str = "original"
+    max_bits: int = 30
 
     @property
     def size_bytes(self) -> int:
@@ -203,6 +149,8 @@ class CompressResult(ArrayResult):
             "grid_size": self.complexity.grid_size,
             "k": self.complexity.k,
             "level": self.level,
+            "source": self.source,
+            "max_bits": self.max_bits,
             "plan": None if self.plan is None else self.plan.to_dict(),
             "iterations": [it.to_dict() for it in self.iterations],
             "seconds": dict(self.seconds),
@@ -218,60 +166,11 @@ class CompressResult(ArrayResult):
 
 
 def _weld(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Merge vertices with identical coordinates (STL files are triangle soups: without
-    this the simplifier sees no shared edge)."""
+    """Point every face at the first of the vertices with its coordinates (STL files are
+    triangle soups: without this no edge is shared); duplicates become unreferenced."""
     vertices, faces = mesh
-    unique, inverse = np.unique(vertices, axis=0, return_inverse=True)
-    if len(unique) == len(vertices):
-        return mesh
-    return as_mesh(unique, inverse.reshape(-1)[faces])
-
-
-def _box(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Bounding box of the vertices some face references."""
-    used = mesh[0][np.unique(mesh[1])]
-    return used.min(axis=0), used.max(axis=0)
-
-
-def _grid(
-    original_box: tuple[np.ndarray, np.ndarray], level: tuple[np.ndarray, np.ndarray]
-) -> tuple[np.ndarray, float]:
-    """Cube grid (origin, side) over the original's box, widened to hold the level: a
-    simplifier may move a vertex slightly outside the original's box."""
-    level_lo, level_hi = _box(level)
-    return cube_grid(np.minimum(original_box[0], level_lo), np.maximum(original_box[1], level_hi))
-
-
-def _plan(
-    constraint: str, target: float, k: float, grid_size: float, alpha: float, t: float
-) -> model.Allocation | None:
-    """The model's plan for the constraint; None where it has none because the smallest
-    mesh it knows already meets the target (an error of S or more) or exceeds it (a size
-    below a tetrahedron's)."""
-    options = {"grid_size": grid_size, "alpha": alpha, "connectivity_bits": t}
-    if constraint == "size":
-        smallest = MODEL_MIN_VERTICES * (3.0 * alpha * MODEL_MIN_BITS + t)
-        return model.plan_for_size(target, k, **options) if target >= smallest else None
-    if constraint == "error":
-        return model.plan_for_error(target, k, **options) if target < grid_size else None
-    return model.plan_for_vertices(target, k, **options)
-
-
-def _meets(constraint: str, budget: float, error: float, size_bits: int) -> bool:
-    if constraint == "size":
-        return size_bits <= budget
-    if constraint == "error":
-        return error <= budget
-    return True
-
-
-def _slack(constraint: str, budget: float, error: float, size_bits: int) -> float:
-    """Unused fraction of the budget (0 for a vertex count)."""
-    if constraint == "size":
-        return 1.0 - size_bits / budget
-    if constraint == "error":
-        return 1.0 - error / budget
-    return 0.0
+    welded, merged = _core.weld(vertices, faces)
+    return (vertices, welded) if merged else mesh
 
 
 def compress(
@@ -283,6 +182,7 @@ def compress(
     relative: bool = False,
     lods: Sequence[MeshLike] | None = None,
     simplifier: Simplifier | None = None,
+    method: str = "auto",
     format: str = "draco",
     alpha: float = DRACO_ALPHA,
     connectivity_bits: float = DRACO_CONNECTIVITY_BITS,
@@ -293,7 +193,9 @@ def compress(
     certify: bool = False,
     progress: Callable[[Iteration], None] | None = None,
 ) -> CompressResult:
-    """Compress a mesh to meet one budget, choosing B and V by the paper's model (Sec. 7).
+    """Compress a mesh to meet one budget: the fewest bytes within an error budget, the
+    least error within a size budget (paper Sec. 7, with the search of
+    :mod:`meshbits.search`).
 
     Parameters
     ----------
@@ -307,41 +209,46 @@ def compress(
         length unit, or relative to the grid size S (largest bounding-box side) with
         ``relative=True``.
     vertices
-        Vertex count: B is the model's optimum for it (Eq. 12); nothing to iterate.
+        Vertex count: B is the model's optimum for it (Eq. 12); one pass.
     lods
-        Precomputed levels of detail: step 4 picks the one closest to the plan's V
-        instead of simplifying.
+        Precomputed levels of detail to choose from (with the original) instead of
+        simplifying.
     simplifier
-        ``simplifier(vertices, faces, target_vertices) -> (vertices, faces)``; default
-        :func:`meshbits.simplify.simplify` (fast-simplification).
+        ``simplifier(vertices, faces, target_vertices) -> (vertices, faces)``, driven by
+        vertex counts, instead of ``method``.
+    method
+        ``"auto"`` (default): whichever of the two below simplifies this mesh closer to
+        the original at the first plan's vertex count; ``"meshopt"`` (meshoptimizer,
+        driven by error targets, vertices moved to their quadric optimum) or
+        ``"fast-simplification"`` (vertex counts). docs/frontier.md compares them.
     format
         ``"draco"`` (default; DracoPy, ``quantization_bits=B`` on the paper's grid),
         ``"glb"`` (glTF with integer positions, KHR_mesh_quantization, B <= 16) or
-        ``"ply"`` (positions quantized, stored as float32). The size model's defaults are
-        fitted to Draco: pass ``alpha`` and ``connectivity_bits`` for the others, or let
-        the loop correct the size.
+        ``"ply"`` (positions quantized, stored as float32, B <= 24).
     alpha, connectivity_bits
-        The size model's alpha and T (Eq. 1). The defaults are fitted to Draco at
-        compression level 7 (see :func:`meshbits.encode.fit_size_model` and
-        ``meshbits calibrate``); the loop corrects for any misfit.
+        The size model's alpha and T (Eq. 1) for the first plan; the search then predicts
+        sizes from real encodings.
     max_iterations
-        Passes of steps 3-6 at most.
+        Passes (candidates measured) at most.
     samples, seed
-        Sampling of the Hausdorff measurement (:func:`meshbits.hausdorff`), seeded. By
-        default both meshes get the area samples that the finer one would get alone
-        (10 per face of the finer mesh, within [1e4, 1e6]): the distance to the fine
-        original varies at the scale of its own triangles, so the coarse output must be
-        sampled that densely too (on Spot at 370 vertices, sampling the output by its own
+        Sampling of the Hausdorff measurement (:func:`meshbits.hausdorff`), seeded: both
+        meshes get ``samples`` area samples (default: the original's
+        :func:`meshbits.hausdorff.default_samples`, so a coarse output is sampled as densely
+        as the fine original; on Spot at 370 vertices, sampling the output by its own
         face count found 71% of the error that 1e6 samples find).
     estimator
         Estimator of K.
     certify
-        Measure with a certified upper bound (:func:`meshbits.hausdorff` with
-        ``bounds=True``, refined to a tolerance of :data:`CERTIFY_TOLERANCE` times the
-        budget) and count an error budget as met only when that *upper bound* is within
-        it. Slower; without it the sampled distance (a lower bound) decides.
+        Measure with a certified upper bound (refined to :data:`CERTIFY_TOLERANCE` times
+        the budget) and count an error budget as met only when that *upper bound* is
+        within it. Slower; without it the sampled distance (a lower bound) decides.
     progress
         Called with each :class:`Iteration` as it completes.
+
+    Raises
+    ------
+    MeshbitsError
+        Bad mesh or arguments, a budget that is not a positive finite number, K = 0.
     """
     given = [
         name
@@ -353,197 +260,86 @@ def compress(
     constraint = given[0]
     if max_iterations < 1:
         raise MeshbitsError(f"max_iterations must be at least 1, got {max_iterations}")
-    if format not in ("draco", "glb", "ply"):
-        raise MeshbitsError(f"format must be 'draco', 'glb' or 'ply', got {format!r}")
+    if format not in FORMAT_MAX_BITS:
+        raise MeshbitsError(f"format must be one of {tuple(FORMAT_MAX_BITS)}, got {format!r}")
+    if method not in (*METHODS, "auto"):
+        raise MeshbitsError(f"method must be 'auto' or one of {METHODS}, got {method!r}")
     budget = float({"size": size, "error": error, "vertices": vertices}[constraint])
     if not np.isfinite(budget) or budget <= 0:
         raise MeshbitsError(
             f"the {constraint} budget must be a positive finite number, got {budget}"
         )
     original = _weld(as_mesh(mesh))
-    seconds = {"complexity": 0.0, "simplify": 0.0, "encode": 0.0, "hausdorff": 0.0}
-
     start = time.perf_counter()
     complexity = shape_complexity(original, estimator=estimator)
-    seconds["complexity"] = time.perf_counter() - start
+    seconds = {"complexity": time.perf_counter() - start}
     grid_size = complexity.grid_size
     if complexity.k <= 0:
         raise MeshbitsError(
             "the mesh has K = 0 (flat or all edges skipped): the model has no answer"
         )
-
     if constraint == "error" and relative:
         budget *= grid_size
-    available = referenced_vertex_count(original[1])
-    original_box = _box(original)
     max_bits = min(FORMAT_MAX_BITS[format], precision_bits(original[0], grid_size))
-    simplify_to = simplifier or (lambda v, f, n: simplify((v, f), n))
 
-    simplified_cache: dict[int, tuple[tuple[np.ndarray, np.ndarray], int | None]] = {}
+    start = time.perf_counter()
+    count = default_samples(len(original[1])) if samples is None else int(samples)
+    reference = Reference(original, samples=count, seed=seed)
+    seconds["reference"] = time.perf_counter() - start
+    search = Search(
+        original,
+        reference,
+        constraint=constraint,
+        budget=budget,
+        k=complexity.k,
+        grid_size=grid_size,
+        max_bits=max_bits,
+        format=format,
+        alpha=alpha,
+        connectivity_bits=connectivity_bits,
+        method=None if (simplifier is not None or lods is not None) else method,
+        simplifier=simplifier,
+        lods=lods,
+        samples=count,
+        certify=certify,
+        tolerance=CERTIFY_TOLERANCE * budget if certify and constraint == "error" else None,
+    )
+    run_search(search, max_iterations, progress)
+    seconds |= search.seconds
 
-    def level_for(target_vertices: int) -> tuple[tuple[np.ndarray, np.ndarray], int | None]:
-        key = int(target_vertices)
-        if lods is not None:
-            index = closest_level(lods, key)
-            return as_mesh(lods[index]), index
-        if key not in simplified_cache:
-            begin = time.perf_counter()
-            if key >= available:
-                simplified_cache[key] = (original, None)
-            else:
-                # Start from the coarsest level made so far that still has enough
-                # vertices: later passes then reduce a small mesh, not the original.
-                finer = [
-                    mesh
-                    for mesh, _ in simplified_cache.values()
-                    if mesh is not original and len(mesh[0]) >= key
-                ]
-                source = min(finer, key=lambda mesh: len(mesh[0])) if finer else original
-                v, f = simplify_to(source[0], source[1], key)
-                simplified_cache[key] = (as_mesh(v, f), None)
-            seconds["simplify"] += time.perf_counter() - begin
-        return simplified_cache[key]
-
-    first_plan: model.Allocation | None = None
-    target = budget
-    iterations: list[Iteration] = []
-    best: tuple[Encoded, int | None, Iteration, np.ndarray, float] | None = None
-    fallback: tuple[Encoded, int | None, Iteration, np.ndarray, float] | None = None
-    tried: set[tuple[int, int]] = set()
-    passing: float | None = None
-    failing: float | None = None
-    for _ in range(max_iterations):
-        begin = time.perf_counter()
-        plan = _plan(constraint, target, complexity.k, grid_size, alpha, connectivity_bits)
-        if not iterations:
-            first_plan = plan
-        if plan is None:
-            # Below the model's smallest mesh (a size) or above its largest error: the
-            # smallest output there is.
-            bits, planned = int(MODEL_MIN_BITS), int(min(MODEL_MIN_VERTICES, available))
-        else:
-            bits = int(np.clip(plan.whole_bits, 1, max_bits))
-            planned = int(np.clip(round(plan.whole_vertices), 4, available))
-        if constraint == "vertices":
-            planned = int(min(budget, available))
-        if (bits, planned) in tried:
-            break
-        tried.add((bits, planned))
-        level_mesh, level = level_for(planned)
-
-        t0 = time.perf_counter()
-        origin, size_of_grid = _grid(original_box, level_mesh)
-        encoded = encode(level_mesh, bits, format=format, origin=origin, grid_size=size_of_grid)
-        seconds["encode"] += time.perf_counter() - t0
-        t0 = time.perf_counter()
-        measurement = hausdorff(
-            original,
-            (encoded.vertices, encoded.faces),
-            samples=samples or default_samples(max(len(original[1]), len(encoded.faces))),
-            seed=seed,
-            statistics=False,
-            bounds=certify,
-            tolerance=CERTIFY_TOLERANCE * budget if certify and constraint == "error" else None,
-        )
-        measured = measurement.distance
-        upper = measurement.upper if certify else None
-        seconds["hausdorff"] += time.perf_counter() - t0
-
-        decisive = measured if upper is None else upper
-        met = _meets(constraint, budget, decisive, encoded.size_bits)
-        record = Iteration(
-            target=float(target),
-            bits=bits,
-            planned_vertices=planned,
-            vertices=len(encoded.vertices),
-            faces=len(encoded.faces),
-            predicted_error=float(model.error(bits, planned, complexity.k, grid_size)),
-            predicted_size_bits=float(
-                model.file_size(bits, planned, alpha=alpha, connectivity_bits=connectivity_bits)
-            ),
-            measured_error=float(measured),
-            measured_size_bits=encoded.size_bits,
-            measured_error_upper=upper,
-            met=met,
-            seconds=time.perf_counter() - begin,
-        )
-        iterations.append(record)
-        if progress is not None:
-            progress(record)
-        if met and (best is None or _better(constraint, record, best[2])):
-            best = (encoded, level, record, origin, size_of_grid)
-        if fallback is None or _closer(constraint, budget, record, fallback[2]):
-            fallback = (encoded, level, record, origin, size_of_grid)
-        if constraint == "vertices" or (lods is not None and met):
-            break
-        if met:
-            passing = target if passing is None else max(passing, target)
-            if _slack(constraint, budget, decisive, encoded.size_bits) < SLACK:
-                break
-        else:
-            failing = target if failing is None else min(failing, target)
-        ratio = budget / (decisive if constraint == "error" else encoded.size_bits)
-        next_target = _next_target(target, ratio, passing, failing)
-        if next_target is None or (constraint == "error" and next_target >= grid_size):
-            break
-        target = next_target
-
-    chosen = best or fallback
-    assert chosen is not None
-    encoded, level, record, origin, size_of_grid = chosen
+    best = search.best()
+    chosen = best or search.closest()
     met = best is not None
-    step = size_of_grid / (2**encoded.bits - 1)
-    codes = np.rint((encoded.vertices - origin) / step).astype(
+    encoded = search.encoded(chosen)
+    level = search.levels[chosen.level]
+    step = level.grid_size / (2**encoded.bits - 1)
+    codes = np.rint((encoded.vertices - level.origin) / step).astype(
         np.uint16 if encoded.bits <= 16 else np.uint32
     )
-    message = _message(constraint, budget, met, record, len(iterations))
     return CompressResult(
         constraint=constraint,
         budget=budget,
         met=met,
-        message=message,
+        message=_message(constraint, budget, met, chosen, len(search.measurements)),
         bits=encoded.bits,
         vertices=encoded.vertices,
         faces=encoded.faces,
         codes=codes,
-        origin=origin,
+        origin=level.origin,
         step=step,
-        error=record.measured_error,
-        error_upper=record.measured_error_upper,
+        error=chosen.measured_error,
+        error_upper=chosen.measured_error_upper,
         size_bits=encoded.size_bits,
         data=encoded.data,
         format=encoded.format,
-        plan=first_plan,
+        plan=search.plan,
         complexity=complexity,
-        iterations=tuple(iterations),
-        level=level,
+        iterations=tuple(search.measurements),
+        level=level.lod,
         seconds=seconds,
+        source=level.source,
+        max_bits=max_bits,
     )
-
-
-#: Largest factor by which one pass may change the solver's constraint.
-MAX_STEP = 4.0
-
-
-def _next_target(
-    target: float, ratio: float, passing: float | None, failing: float | None
-) -> float | None:
-    """The constraint for the next pass, or None when the bracket has closed.
-
-    ``ratio`` is budget / measured. Raising the constraint (a larger size or error) uses
-    more of the budget; ``passing`` is the largest constraint that met the budget so far
-    and ``failing`` the smallest that missed it. Until both exist, step by the ratio
-    (aiming a little inside the budget, at most :data:`MAX_STEP` per pass); then bisect
-    on a log scale.
-    """
-    step = float(np.clip(ratio * (1 - SLACK / 2), 1 / MAX_STEP, MAX_STEP))
-    proposal = target * step
-    if passing is not None and failing is not None:
-        if failing / passing < 1 + SLACK / 4:
-            return None
-        if not passing < proposal < failing:
-            proposal = float(np.sqrt(passing * failing))
-    return proposal
 
 
 def _describe(constraint: str, amount: float) -> str:
@@ -567,17 +363,3 @@ def _message(constraint: str, budget: float, met: bool, record: Iteration, passe
         f"could not meet the {constraint} budget of {_describe(constraint, budget)} in "
         f"{passes} passes; the {closest} reached: {outcome}"
     )
-
-
-def _better(constraint: str, a: Iteration, b: Iteration) -> bool:
-    """Among results that meet the budget: smaller error for size, smaller file otherwise."""
-    if constraint == "size":
-        return a.measured_error < b.measured_error
-    return a.measured_size_bits < b.measured_size_bits
-
-
-def _closer(constraint: str, budget: float, a: Iteration, b: Iteration) -> bool:
-    """Among results that miss the budget: the one that misses it least."""
-    if constraint == "size":
-        return a.measured_size_bits < b.measured_size_bits
-    return a.measured_error < b.measured_error

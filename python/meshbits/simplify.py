@@ -1,32 +1,103 @@
-"""Step 4 of the paper's algorithm (Sec. 7): reduce a mesh to about V vertices.
+"""Step 4 of the paper's algorithm (Sec. 7): reduce a mesh to fewer vertices.
 
-The default simplifier is fast-simplification (quadric edge collapse, Garland & Heckbert).
-Any callable ``simplifier(vertices, faces, target_vertices) -> (vertices, faces)`` can be
-plugged in instead; and :func:`closest_level` picks, among precomputed levels of detail,
-the one whose vertex count is closest to the target.
+Two simplifiers, both quadric edge collapse (Garland & Heckbert 1997):
+
+- ``"meshopt"`` (default): meshoptimizer's simplifier in the Rust core, the one gltfpack
+  uses. It takes a vertex target, an *error* target (it stops before its error estimate
+  would pass a length), or both; it keeps every output vertex at an input vertex's position
+  (``vertex_ids`` says which), weighs per-vertex attributes (normals, UVs, colours) and
+  keeps their seams, and can lock chosen vertices or the open borders.
+- ``"fast-simplification"``: the ``fast-simplification`` package (Sp4cerat's
+  Fast-Quadric-Mesh-Simplification), vertex targets only; it moves vertices to their
+  quadric optimum.
+
+Which to use by default was measured (``benches/frontier.py``, docs/frontier.md).
+:func:`closest_level` picks, among precomputed levels of detail, the one whose vertex
+count is closest to a target.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from . import _core
 from .errors import MeshbitsError
 from .mesh import MeshLike, as_mesh
+from .results import ArrayResult
 
-__all__ = ["Simplifier", "closest_level", "referenced_vertex_count", "simplify"]
+__all__ = [
+    "METHODS",
+    "Simplified",
+    "Simplifier",
+    "closest_level",
+    "referenced_vertex_count",
+    "simplify",
+]
 
 #: ``simplifier(vertices (n, 3) float64, faces (m, 3) int, target_vertices) -> (vertices, faces)``
 Simplifier = Callable[[np.ndarray, np.ndarray, int], tuple[np.ndarray, np.ndarray]]
 
+#: The simplifiers :func:`simplify` offers.
+METHODS = ("meshopt", "fast-simplification")
+
 #: Values of fast-simplification's ``agg`` tried in turn when a lower one stops short.
 _ESCALATION = (3.0, 5.0, 7.0, 10.0)
+
+#: Face-count requests meshopt gets to land a vertex target within ``rtol``.
+_VERTEX_TARGET_TRIES = 5
 
 # fast-simplification keeps the mesh it works on in native globals: two calls must not
 # overlap, so every call goes through this lock.
 _FAST_SIMPLIFICATION_LOCK = threading.Lock()
+
+
+@dataclass(frozen=True, eq=False)
+class Simplified(ArrayResult):
+    """A simplified mesh (see :func:`simplify`).
+
+    Attributes
+    ----------
+    vertices : ndarray, shape (n, 3), float64
+        The kept vertices (length), unreferenced ones removed.
+    faces : ndarray, shape (m, 3), int64
+    error : float or None
+        The simplifier's own error estimate (length, mesh units): for ``"meshopt"`` the
+        largest quadric error of a collapse it made, an estimate of the distance to the
+        input surface, not a bound on the Hausdorff distance. None for
+        ``"fast-simplification"``, which reports none.
+    method : str
+        The simplifier used.
+    vertex_ids : ndarray, shape (n,), int64, or None
+        ``"meshopt"``: the input vertex each output vertex is (same position, same
+        attributes, unless ``update_positions`` moved it). None for
+        ``"fast-simplification"``, which moves vertices and keeps no such map.
+    attributes : ndarray, shape (n, k), or None
+        The kept vertices' attributes, when some were given.
+    """
+
+    vertices: np.ndarray = field(repr=False)
+    faces: np.ndarray = field(repr=False)
+    error: float | None
+    method: str
+    vertex_ids: np.ndarray | None = field(default=None, repr=False)
+    attributes: np.ndarray | None = field(default=None, repr=False)
+
+    _arrays = ("vertices", "faces", "vertex_ids", "attributes")
+
+    @property
+    def vertex_count(self) -> int:
+        return len(self.vertices)
+
+    @property
+    def mesh(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(vertices, faces)``."""
+        return self.vertices, self.faces
 
 
 def referenced_vertex_count(faces: np.ndarray) -> int:
@@ -37,6 +108,213 @@ def referenced_vertex_count(faces: np.ndarray) -> int:
 def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     used, inverse = np.unique(faces.ravel(), return_inverse=True)
     return vertices[used], inverse.reshape(-1, 3).astype(np.int64)
+
+
+def _check_target(name: str, value: Any, smallest: float) -> Any:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    if not (math.isfinite(float(value)) and value >= smallest):
+        raise MeshbitsError(f"{name} must be a finite number >= {smallest:g}, got {value!r}")
+    return value
+
+
+def simplify(
+    mesh: MeshLike,
+    vertices: int | None = None,
+    *,
+    error: float | None = None,
+    method: str = "meshopt",
+    lock_border: bool = False,
+    locked: Any = None,
+    attributes: Any = None,
+    attribute_weights: Any = None,
+    prune: bool = False,
+    update_positions: bool = False,
+    rtol: float = 0.05,
+) -> Simplified:
+    """Simplify a mesh to about ``vertices`` vertices, or until its error would pass
+    ``error``, whichever comes first.
+
+    Parameters
+    ----------
+    mesh
+        ``trimesh.Trimesh`` or ``(vertices, faces)``.
+    vertices : int, optional
+        Target number of referenced vertices (>= 4); the result lands within ``rtol`` of
+        it where the simplifier can reach it.
+    error : float, optional
+        ``"meshopt"`` only: largest error estimate allowed (length, mesh units, >= 0).
+        meshoptimizer stops collapsing before its error would pass it.
+    method : {"meshopt", "fast-simplification"}
+    lock_border : bool
+        Keep the vertices of open borders in place (holes do not grow).
+    locked : (n,) bool, optional
+        ``"meshopt"`` only: vertices that must stay.
+    attributes : (n, k) float, optional
+        ``"meshopt"`` only: per-vertex attributes (normals, UVs, colours) weighed in the
+        collapse cost; vertices that share a position but not their attributes form a
+        seam, which is kept. Without attributes, vertices with identical coordinates are
+        welded first (an STL triangle soup becomes a surface).
+    attribute_weights : (k,) float, optional
+        Weight of each attribute column (default 1): an attribute difference of 1 costs
+        like ``weight`` mesh units of distance.
+    prune : bool
+        ``"meshopt"`` only: let small disconnected pieces vanish when they fit the error.
+    update_positions : bool
+        ``"meshopt"`` only: move each kept vertex (and its attributes) to where the
+        collapse quadrics are least, as fast-simplification does, instead of keeping input
+        vertices where they were (positions then pass through float32 relative to the
+        bounding-box centre).
+    rtol : float
+        Relative tolerance on a vertex target.
+
+    Returns
+    -------
+    Simplified
+
+    Raises
+    ------
+    MeshbitsError
+        Bad mesh, no target, a target out of range, an option the method does not have.
+    """
+    vertex_array, face_array = as_mesh(mesh)
+    target_vertices = _check_target("vertices", vertices, 4)
+    target_error = _check_target("error", error, 0)
+    if target_vertices is None and target_error is None:
+        raise MeshbitsError("give a target: vertices, error, or both")
+    if method not in METHODS:
+        raise MeshbitsError(f"method must be one of {METHODS}, got {method!r}")
+    if method == "fast-simplification":
+        extras = {
+            "error": error,
+            "locked": locked,
+            "attributes": attributes,
+            "prune": prune,
+            "update_positions": update_positions,
+        }
+        given = [name for name, value in extras.items() if value not in (None, False)]
+        if given or target_vertices is None:
+            raise MeshbitsError(
+                "fast-simplification takes a vertex target only"
+                + (f", not {', '.join(given)}" if given else "")
+            )
+        out_v, out_f = _fast_simplification_to(
+            vertex_array, face_array, int(target_vertices), lock_border, rtol
+        )
+        return Simplified(out_v, out_f, None, method)
+    return _meshopt(
+        vertex_array,
+        face_array,
+        None if target_vertices is None else int(target_vertices),
+        None if target_error is None else float(target_error),
+        lock_border,
+        locked,
+        attributes,
+        attribute_weights,
+        prune,
+        update_positions,
+        rtol,
+    )
+
+
+def _meshopt(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    target_vertices: int | None,
+    target_error: float | None,
+    lock_border: bool,
+    locked: Any,
+    attributes: Any,
+    weights: Any,
+    prune: bool,
+    update: bool,
+    rtol: float,
+) -> Simplified:
+    n = len(vertices)
+    lock_array = None
+    if locked is not None:
+        lock_array = np.ascontiguousarray(np.asarray(locked, dtype=bool))
+        if lock_array.shape != (n,):
+            raise MeshbitsError(f"locked must have shape ({n},), got {lock_array.shape}")
+    values = weight_array = None
+    if attributes is not None:
+        values = np.ascontiguousarray(np.asarray(attributes, dtype=np.float32))
+        if values.ndim == 1:
+            values = values.reshape(-1, 1)
+        if values.ndim != 2 or len(values) != n:
+            raise MeshbitsError(f"attributes must have shape ({n}, k), got {values.shape}")
+        k = values.shape[1]
+        weight_array = np.ones(k, dtype=np.float32)
+        if weights is not None:
+            weight_array = np.ascontiguousarray(np.asarray(weights, dtype=np.float32))
+            if weight_array.shape != (k,):
+                raise MeshbitsError(
+                    f"attribute_weights must have shape ({k},), got {weight_array.shape}"
+                )
+    elif weights is not None:
+        raise MeshbitsError("attribute_weights needs attributes")
+
+    def run(target_faces: int | None) -> dict[str, Any]:
+        return _core.simplify(
+            vertices,
+            faces,
+            target_faces,
+            target_error,
+            lock_border,
+            lock_array,
+            values,
+            weight_array,
+            prune,
+            values is None,
+            update,
+        )
+
+    if target_vertices is None:
+        raw = run(None)
+    else:
+        raw = _meshopt_to_vertex_count(run, faces, target_vertices, rtol, target_error is not None)
+    ids = raw["vertex_ids"].astype(np.int64)
+    kept_attributes = None
+    if values is not None:
+        kept_attributes = raw["attributes"] if update else np.asarray(attributes)[ids]
+    return Simplified(
+        vertices=raw["positions"] if update else vertices[ids],
+        faces=raw["faces"].astype(np.int64),
+        error=float(raw["error"]),
+        method="meshopt",
+        vertex_ids=ids,
+        attributes=kept_attributes,
+    )
+
+
+def _meshopt_to_vertex_count(
+    run: Callable[[int | None], dict[str, Any]],
+    faces: np.ndarray,
+    target: int,
+    rtol: float,
+    error_limited: bool,
+) -> dict[str, Any]:
+    """Face-count requests until the kept vertices land within ``rtol`` of ``target``:
+    meshoptimizer counts triangles, and a mesh keeps about its own faces-per-vertex ratio."""
+    used = referenced_vertex_count(faces)
+    if target >= used:
+        return run(len(faces))
+    target_faces = max(1, round(target * len(faces) / used))
+    best: dict[str, Any] | None = None
+    for _ in range(_VERTEX_TARGET_TRIES):
+        raw = run(target_faces)
+        got = len(raw["vertex_ids"])
+        if best is None or abs(got - target) < abs(len(best["vertex_ids"]) - target):
+            best = raw
+        if abs(got - target) <= rtol * target or got == 0:
+            break
+        if error_limited and got > target and len(raw["faces"]) > 1.1 * target_faces:
+            break  # the error target stopped it first: fewer faces will not come
+        target_faces = max(1, min(len(faces), round(target_faces * target / max(got, 1))))
+    assert best is not None
+    return best
 
 
 def _fast_simplification(
@@ -59,50 +337,35 @@ def _fast_simplification(
     return _compact(np.asarray(out_vertices, dtype=np.float64), np.asarray(out_faces))
 
 
-def simplify(
-    mesh: MeshLike,
+def _fast_simplification_to(
+    vertices: np.ndarray,
+    faces: np.ndarray,
     target_vertices: int,
-    *,
+    preserve_border: bool,
+    rtol: float,
     aggressiveness: float = 1.5,
-    preserve_border: bool = True,
-    rtol: float = 0.05,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Simplify to about ``target_vertices`` referenced vertices with fast-simplification.
+    """fast-simplification to about ``target_vertices`` referenced vertices.
 
-    ``aggressiveness`` is fast-simplification's ``agg``: lower is slower and closer to a
-    true quadric-error ordering. Its default there is 7; 2 is used here because the
-    Hausdorff error is what meshbits answers for: on the Stanford bunny halved to 30,000
-    vertices, agg = 7 gave a maximum error of 2.6e-3 S and agg = 1.5 gave 3.3e-4 S
-    (S = largest bounding-box side), in 0.1 s either way. ``preserve_border`` keeps the
-    vertices of open borders, so that holes do not grow (bunny at 6,000 vertices, agg = 7:
-    1.8e-2 S without it, 6.8e-3 S with it).
-
-    fast-simplification takes a triangle count; the request uses the mesh's own
-    triangles-per-vertex ratio. When a low ``aggressiveness`` stops short of the target
-    (its sweeps run out), it is raised step by step (3, 5, 7, 10); when the result
-    undershoots by more than ``rtol`` (relative), one corrected request follows.
-    Unreferenced vertices are removed.
-
-    Returns
-    -------
-    vertices : (n, 3) float64
-    faces : (m, 3) int64
+    ``aggressiveness`` is its ``agg``: lower is slower and closer to a true quadric-error
+    ordering; its own default is 7, 1.5 is used because the Hausdorff error is what
+    meshbits answers for (bunny halved to 30,000 vertices: 2.6e-3 S at 7, 3.3e-4 S at 1.5,
+    0.1 s either way). It takes a triangle count, asked for at the mesh's own
+    triangles-per-vertex ratio; when a low ``agg`` stops short (its sweeps run out) it is
+    raised step by step (3, 5, 7, 10), and an undershoot beyond ``rtol`` gets one
+    corrected request.
     """
-    vertices, faces = as_mesh(mesh)
-    target_vertices = int(target_vertices)
-    if target_vertices < 4:
-        raise MeshbitsError(f"target_vertices must be at least 4, got {target_vertices}")
     used = referenced_vertex_count(faces)
     if target_vertices >= used:
         return _compact(vertices, faces.astype(np.int64))
     ratio = len(faces) / used
     target_faces = max(4, round(target_vertices * ratio))
-    # fast-simplification stops after a fixed number of sweeps whose collapse threshold
-    # grows like (sweep + 3) ** agg: a low agg may stop short of the target. Escalate.
-    for agg in [aggressiveness, *(a for a in _ESCALATION if a > aggressiveness)]:
-        out = _fast_simplification(vertices, faces, target_faces, agg, preserve_border)
+    agg = aggressiveness
+    out = _fast_simplification(vertices, faces, target_faces, agg, preserve_border)
+    for agg in (a for a in _ESCALATION if a > aggressiveness):
         if len(out[0]) <= (1 + rtol) * target_vertices:
             break
+        out = _fast_simplification(vertices, faces, target_faces, agg, preserve_border)
     got = len(out[0])
     if 0 < got < (1 - rtol) * target_vertices:
         target_faces = max(4, round(target_faces * target_vertices / got))

@@ -1,0 +1,405 @@
+"""compress against a brute-force oracle: how close it comes to the fewest bytes (or the
+least error) any (simplification, B) of a dense grid reaches.
+
+The oracle, per mesh: a ladder of 20 vertex counts (log-spaced, the full mesh included)
+from each of three simplifiers (meshoptimizer keeping input vertices, meshoptimizer moving
+them to their quadric optimum, fast-simplification), times every B from 6 to 20; each cell
+encoded with Draco (DracoPy, compression level 7, the cube grid of the original's box) and
+decoded with DracoPy. Every cell is measured with meshbits; the cells that decide a
+budget, and every output of compress, are measured independently of meshbits with Open3D
+(``hausdorff_open3d`` of ../shared/bench-refs/refs.py: every vertex plus 300,000 area
+samples per mesh, float32 RaycastingScene), and Open3D's number decides.
+
+For each error budget (0.005, 0.002, 0.001, 0.0005 S) the oracle's best is the smallest
+cell whose Open3D error is within the budget; for each size budget (4, 16, 64 kB) the
+cell of least Open3D error within it. Printed per run: compress's bytes and error, the
+oracle's, the excess, the passes, whether Open3D confirms "met", and Draco on the full
+mesh at 11 and 14 bits; then the summary against the targets, and one figure per mesh
+(bytes against error, log-log) in benches/out/frontier/.
+
+    python benches/frontier.py [--meshes bunny horse ...] [--fresh] [--dragon]
+
+The oracle grids are cached in benches/out/frontier/*.json (``--fresh`` rebuilds them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+import meshbits
+from meshbits.encode import decode_draco, encode_draco
+from meshbits.quantize import cube_grid
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = ROOT.parent / "shared"
+OUT = ROOT / "benches" / "out" / "frontier"
+sys.path.insert(0, str(SHARED / "bench-refs"))
+
+MESHES = ["bunny", "horse", "hand", "fandisk", "armadillo", "nefertiti"]
+ERROR_BUDGETS = [0.005, 0.002, 0.001, 0.0005]
+SIZE_BUDGETS_KB = [4, 16, 64]
+BITS = range(6, 21)
+LADDER = 20
+OPEN3D_SAMPLES = 300_000
+SIMPLIFIERS = {
+    "meshopt": {"method": "meshopt"},
+    "meshopt-update": {"method": "meshopt", "update_positions": True},
+    "fast-simplification": {"method": "fast-simplification"},
+}
+
+
+def load(name: str) -> tuple[np.ndarray, np.ndarray]:
+    for path in (SHARED / "meshes" / f"{name}.ply", SHARED / "meshes" / f"{name}.ply.gz"):
+        if path.exists():
+            source = gzip.open(path) if path.suffix == ".gz" else path
+            mesh = trimesh.load(source, file_type="ply", process=False, force="mesh")
+            return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)
+    raise FileNotFoundError(name)
+
+
+def open3d_error(original: tuple[np.ndarray, np.ndarray], decoded: tuple) -> float:
+    """The independent measurement (length): Open3D, every vertex plus 300,000 area
+    samples of each mesh."""
+    from refs import hausdorff_open3d
+
+    return hausdorff_open3d(*original, *decoded, samples=OPEN3D_SAMPLES, seed=1)
+
+
+class Oracle:
+    """The grid of cells of one mesh, cached in benches/out/frontier/<mesh>.json.
+
+    Every cell is measured with meshbits (its default sampling, the original sampled
+    once); the cells that decide a budget are measured again with Open3D, which decides:
+    for an error budget, cells in order of bytes until Open3D confirms one within it;
+    for a size budget, every cell within it whose meshbits error is within 10% of the
+    least."""
+
+    def __init__(self, name: str, mesh: tuple[np.ndarray, np.ndarray], fresh: bool) -> None:
+        self.name, self.mesh = name, mesh
+        self.cache = OUT / f"{name}.json"
+        self.levels: dict[tuple[str, int], tuple[np.ndarray, np.ndarray]] = {}
+        if self.cache.exists() and not fresh:
+            data = json.loads(self.cache.read_text())
+        else:
+            data = self._grid()
+        self.grid_size = data["grid_size"]
+        self.vertices = data["vertices"]
+        self.cells = data["cells"]
+
+    def _grid(self) -> dict:
+        vertices, faces = self.mesh
+        used = len(np.unique(faces))
+        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+        grid_size = float((hi - lo).max())
+        reference = meshbits.Reference(self.mesh)
+        counts = sorted({round(c) for c in np.geomspace(60, used, LADDER)})
+        cells = []
+        start = time.perf_counter()
+        for simplifier in SIMPLIFIERS:
+            for count in counts:
+                level = self._level(simplifier, count)
+                origin, side = cube_grid(
+                    np.minimum(lo, level[0].min(axis=0)), np.maximum(hi, level[0].max(axis=0))
+                )
+                for bits in BITS:
+                    encoded = encode_draco(level, bits, origin=origin, grid_size=side)
+                    decoded = decode_draco(encoded.data)
+                    cells.append(
+                        {
+                            "simplifier": simplifier,
+                            "target": count,
+                            "vertices": len(decoded[0]),
+                            "bits": bits,
+                            "bytes": encoded.size_bytes,
+                            "error": reference.hausdorff(decoded).distance / grid_size,
+                        }
+                    )
+            print(f"  {self.name}: {simplifier} ladder ({time.perf_counter() - start:.0f} s)")
+        data = {"mesh": self.name, "grid_size": grid_size, "vertices": used, "cells": cells}
+        self._save(data)
+        return data
+
+    def _save(self, data: dict | None = None) -> None:
+        OUT.mkdir(parents=True, exist_ok=True)
+        data = data or {
+            "mesh": self.name,
+            "grid_size": self.grid_size,
+            "vertices": self.vertices,
+            "cells": self.cells,
+        }
+        self.cache.write_text(json.dumps(data))
+
+    def _level(self, simplifier: str, count: int) -> tuple[np.ndarray, np.ndarray]:
+        key = (simplifier, count)
+        if key not in self.levels:
+            used = len(np.unique(self.mesh[1]))
+            if count >= used:
+                self.levels[key] = self.mesh
+            else:
+                self.levels[key] = meshbits.simplify(
+                    self.mesh, count, **SIMPLIFIERS[simplifier]
+                ).mesh
+        return self.levels[key]
+
+    def independent(self, cell: dict) -> float:
+        """The cell's Open3D error / S, computed once."""
+        if "open3d" not in cell:
+            level = self._level(cell["simplifier"], cell["target"])
+            lo, hi = self.mesh[0].min(axis=0), self.mesh[0].max(axis=0)
+            origin, side = cube_grid(
+                np.minimum(lo, level[0].min(axis=0)), np.maximum(hi, level[0].max(axis=0))
+            )
+            encoded = encode_draco(level, cell["bits"], origin=origin, grid_size=side)
+            cell["open3d"] = open3d_error(self.mesh, decode_draco(encoded.data)) / self.grid_size
+            self._save()
+        return cell["open3d"]
+
+    def best_for_error(self, budget: float) -> dict | None:
+        """The smallest cell that Open3D finds within the budget."""
+        for cell in sorted(self.cells, key=lambda c: c["bytes"]):
+            if cell["error"] <= 1.1 * budget and self.independent(cell) <= budget:
+                return cell
+        return None
+
+    def best_for_size(self, limit: float) -> dict | None:
+        """The cell of least Open3D error within the size."""
+        fitting = [c for c in self.cells if c["bytes"] <= limit]
+        if not fitting:
+            return None
+        least = min(c["error"] for c in fitting)
+        close = [c for c in fitting if c["error"] <= 1.1 * least]
+        return min(close, key=self.independent)
+
+
+def frontier(cells: list[dict]) -> list[tuple[int, float]]:
+    """The cells no other cell beats in both bytes and error, by bytes."""
+    out: list[tuple[int, float]] = []
+    for cell in sorted(cells, key=lambda c: (c["bytes"], c["error"])):
+        if not out or cell["error"] < out[-1][1]:
+            out.append((cell["bytes"], cell["error"]))
+    return out
+
+
+def full_mesh_draco(oracle: Oracle, bits: int) -> dict:
+    """The original encoded at ``bits``, measured with Open3D."""
+    cell = next(
+        c
+        for c in oracle.cells
+        if c["target"] >= oracle.vertices and c["bits"] == bits and c["simplifier"] == "meshopt"
+    )
+    oracle.independent(cell)
+    return cell
+
+
+def evaluate(name: str, mesh: tuple, oracle: Oracle) -> list[dict]:
+    """compress at every budget, measured like the oracle's decisive cells."""
+    rows = []
+    for kind, budgets in (("error", ERROR_BUDGETS), ("size", SIZE_BUDGETS_KB)):
+        for budget in budgets:
+            start = time.perf_counter()
+            if kind == "error":
+                result = meshbits.compress(mesh, error=budget, relative=True)
+            else:
+                result = meshbits.compress(mesh, size=8 * 1000 * budget)
+            seconds = time.perf_counter() - start
+            decoded = decode_draco(result.data)
+            error = open3d_error(mesh, decoded) / oracle.grid_size
+            row = {
+                "mesh": name,
+                "kind": kind,
+                "budget": budget,
+                "met": result.met,
+                "bits": result.bits,
+                "vertices": len(result.vertices),
+                "source": result.source,
+                "bytes": result.size_bytes,
+                "error": error,
+                "own_error": result.error / oracle.grid_size,
+                "passes": len(result.iterations),
+                "seconds": seconds,
+            }
+            if kind == "error":
+                best = oracle.best_for_error(budget)
+                row["confirmed"] = error <= budget
+                row["oracle_bytes"] = best["bytes"] if best else None
+                row["excess"] = result.size_bytes / best["bytes"] - 1 if best else None
+                for bits in (11, 14):
+                    full = full_mesh_draco(oracle, bits)
+                    meets = full["open3d"] <= budget
+                    row[f"draco{bits}"] = full["bytes"] if meets else None
+            else:
+                limit = 1000 * budget
+                best = oracle.best_for_size(limit)
+                row["confirmed"] = result.size_bytes <= limit
+                row["oracle_error"] = best["open3d"] if best else None
+                row["excess"] = error / best["open3d"] - 1 if best else None
+            row["oracle_reaches"] = best is not None
+            rows.append(row)
+            print(
+                f"  {name} {kind} {budget}: B={row['bits']} V={row['vertices']} "
+                f"({row['source']}) {row['bytes']} bytes, error {error:.3g} S "
+                f"(own {row['own_error']:.3g}), excess {_pct(row['excess'])}, "
+                f"{row['passes']} passes, {seconds:.1f} s, confirmed {row['confirmed']}"
+            )
+    return rows
+
+
+def _pct(x: float | None) -> str:
+    return "-" if x is None else f"{100 * x:+.1f}%"
+
+
+def figure(name: str, oracle: Oracle, rows: list[dict]) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 5), layout="constrained")
+    cells = oracle.cells
+    ax.scatter(
+        [c["bytes"] for c in cells],
+        [c["error"] for c in cells],
+        s=4,
+        color="0.8",
+        label="oracle cells (3 simplifiers x 20 V x B 6..20)",
+    )
+    f = frontier(cells)
+    ax.step(*zip(*f, strict=True), where="post", color="k", lw=1.2, label="oracle frontier")
+    for bits, style in ((14, "--"), (11, ":")):
+        fixed = frontier([c for c in cells if c["bits"] == bits])
+        ax.plot(*zip(*fixed, strict=True), style, color="tab:blue", label=f"best V at B = {bits}")
+        full = full_mesh_draco(oracle, bits)
+        ax.plot(full["bytes"], full["error"], "s", color="tab:blue", mfc="none")
+        ax.annotate(f"full, {bits} bits", (full["bytes"], full["error"]), fontsize=7)
+    ax.plot(
+        [r["bytes"] for r in rows],
+        [r["error"] for r in rows],
+        "o",
+        color="tab:red",
+        label="compress (error and size budgets)",
+    )
+    for budget in ERROR_BUDGETS:
+        ax.axhline(budget, color="tab:red", lw=0.5, alpha=0.4)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("Draco file size (bytes)")
+    ax.set_ylabel("Hausdorff error / S (cells: meshbits; compress: Open3D)")
+    ax.set_title(f"{name}: compress against the brute-force oracle")
+    ax.legend(fontsize=7)
+    path = OUT / f"{name}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def summary(rows: list[dict]) -> None:
+    print("\n| mesh | budget | compress (B, V) | bytes | error / S | oracle | excess | passes |")
+    print("|---|---|---|---:|---:|---:|---:|---:|")
+    for r in rows:
+        unit = "S" if r["kind"] == "error" else "kB"
+        oracle_value = (
+            r.get("oracle_bytes") if r["kind"] == "error" else f"{r.get('oracle_error'):.3g}"
+        )
+        print(
+            f"| {r['mesh']} | {r['budget']} {unit} | {r['bits']}, {r['vertices']} | "
+            f"{r['bytes']} | {r['error']:.3g} | {oracle_value} | {_pct(r['excess'])} | "
+            f"{r['passes']} |"
+        )
+    excess = [r["excess"] for r in rows if r["excess"] is not None]
+    print(
+        f"\nexcess over the oracle: median {_pct(statistics.median(excess))}, "
+        f"worst {_pct(max(excess))} ({len(excess)} runs)"
+    )
+    for kind in ("error", "size"):
+        part = [r["excess"] for r in rows if r["kind"] == kind and r["excess"] is not None]
+        if part:
+            print(
+                f"  {kind} budgets: median {_pct(statistics.median(part))}, worst {_pct(max(part))}"
+            )
+    print(
+        f"passes: median {statistics.median(r['passes'] for r in rows)}, "
+        f"max {max(r['passes'] for r in rows)}"
+    )
+    missed = [r for r in rows if r["oracle_reaches"] and not r["met"]]
+    print(f"budgets the oracle reaches but compress missed: {len(missed)}")
+    unconfirmed = [r for r in rows if r["met"] and not r["confirmed"]]
+    print(
+        f"'met' not confirmed by Open3D: {len(unconfirmed)} "
+        + " ".join(f"{r['mesh']}@{r['budget']}" for r in unconfirmed)
+    )
+    larger = [
+        (r, bits)
+        for r in rows
+        if r["kind"] == "error"
+        for bits in (11, 14)
+        if r.get(f"draco{bits}") is not None and r["bytes"] > r[f"draco{bits}"]
+    ]
+    print(
+        f"larger than Draco on the full mesh at 11/14 bits where that meets the budget: "
+        f"{len(larger)} " + " ".join(f"{r['mesh']}@{r['budget']}/{b}" for r, b in larger)
+    )
+    by_mesh: dict[str, list[dict]] = {}
+    for r in rows:
+        if r["kind"] == "error":
+            by_mesh.setdefault(r["mesh"], []).append(r)
+    broken = [
+        m
+        for m, rs in by_mesh.items()
+        for a, b in zip(
+            sorted(rs, key=lambda r: r["budget"]),
+            sorted(rs, key=lambda r: r["budget"])[1:],
+            strict=False,
+        )
+        if b["bytes"] > a["bytes"]
+    ]
+    print(f"meshes where a looser error budget gave a bigger file: {sorted(set(broken))}")
+
+
+def dragon() -> None:
+    mesh = load("dragon")
+    for _ in range(2):
+        start = time.perf_counter()
+        result = meshbits.compress(mesh, error=0.001, relative=True)
+        seconds = time.perf_counter() - start
+        print(
+            f"dragon, 0.001 S: {seconds:.2f} s, met {result.met}, B = {result.bits}, "
+            f"V = {len(result.vertices)}, {result.size_bytes} bytes, {len(result.iterations)} "
+            f"passes; by phase: " + ", ".join(f"{k} {v:.2f}" for k, v in result.seconds.items())
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--meshes", nargs="+", default=MESHES)
+    parser.add_argument("--fresh", action="store_true", help="rebuild the oracle grids")
+    parser.add_argument("--dragon", action="store_true", help="also time the dragon")
+    parser.add_argument("--oracle-only", action="store_true")
+    args = parser.parse_args()
+    rows = []
+    for name in args.meshes:
+        mesh = load(name)
+        grid = Oracle(name, mesh, args.fresh)
+        if args.oracle_only:
+            continue
+        mesh_rows = evaluate(name, mesh, grid)
+        figure(name, grid, mesh_rows)
+        rows += mesh_rows
+    if rows:
+        OUT.mkdir(parents=True, exist_ok=True)
+        (OUT / "runs.json").write_text(json.dumps(rows, indent=1))
+        summary(rows)
+    if args.dragon:
+        dragon()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,989 @@
+"""The search behind :func:`meshbits.compress`: the (B, V) of fewest bytes within an error
+budget, or of least error within a size budget, found from measurements.
+
+Each pass plans from what is known, builds candidates (simplify, quantize, encode: cheap
+next to measuring), measures the one it ranks best, and updates:
+
+- **Quantization error** in closed form: a mesh quantized to ``B`` bits on the cube grid
+  of side ``S`` measures ``E_Q(B) = c_Q S / (2^B - 1)`` from itself, ``c_Q`` =
+  :data:`QUANTIZATION_FACTOR` (0.68-0.86 on the full-resolution bunny, horse, hand and
+  fandisk at every ``B`` from 6 to 20; the bound is ``sqrt(3)/2 = 0.87``).
+- **Combined error** of a level with tessellation error ``t`` quantized with ``E_Q = q``:
+  ``max(t, q) (1 + delta min(t, q) / max(t, q))``, ``delta`` = :data:`COMBINE_DELTA`.
+  The paper adds the two (``delta = 1``); measured, the larger one dominates (over 2,500
+  (level, B) pairs of those four meshes, the measured error over this form has median
+  0.98-1.00 and 90th percentile 1.02-1.06 with ``delta = 0.15``).
+- **Tessellation error** of a level: inverted from its measurements once measured;
+  before, meshoptimizer's own estimate times ``kappa``, the measured ratio of the nearest
+  measured meshopt levels (:data:`KAPPA_PRIOR` before any: the ratio is 1.8-3 on the
+  bunny, hand and horse, 2.6-6 on the CAD part fandisk).
+- **Size** from real encodings of the candidates.
+
+For an error budget ``E``, each ``B`` from the least one whose quantization alone fits
+(``E_Q(B) < E``) up to :data:`BITS_ABOVE` more leaves room ``t*(B)`` for tessellation;
+meshoptimizer is asked for a level at the error target ``tau`` expected to give
+``t*(B)`` (interpolated between the measured levels, in log-log), and the original
+itself is a candidate at the least ``B``. The candidate of fewest bytes predicted to meet
+``E`` is measured. A measured level that met ``E`` at some ``B`` is not tried at more
+bits, one that missed it not at fewer: at a fixed level the least passing ``B`` is
+sought. For a size budget ``F``, each ``B`` near the model's optimum gets the finest
+level whose encoding fits ``F``, and the one of least predicted error is measured. The
+search stops when no candidate promises :data:`STOP_GAIN` more than the best result so
+far.
+
+meshoptimizer's simplifier can leave a spike of the original (one vertex far from its
+neighbours) far from the simplified surface: the error of a level is then far above its
+target, flat over a range of vertex counts. A level whose original vertices lie farther
+from it than the tessellation error it is meant to have is simplified again with those
+vertices locked in place (:data:`LOCK_ROUNDS`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import model
+from .constants import MODEL_MIN_BITS, MODEL_MIN_VERTICES
+from .encode import Encoded, encode
+from .hausdorff import ClosestPoints, Reference
+from .mesh import as_mesh
+from .quantize import cube_grid
+from .simplify import Simplifier, closest_level, simplify
+
+__all__ = [
+    "BITS_ABOVE",
+    "COMBINE_DELTA",
+    "KAPPA_PRIOR",
+    "QUANTIZATION_FACTOR",
+    "STOP_GAIN",
+    "Iteration",
+    "Level",
+    "Search",
+    "allowed_tessellation",
+    "combined_error",
+    "interaction",
+    "quantization_error",
+    "run_search",
+]
+
+#: ``c_Q``: measured Hausdorff distance of a mesh to its own ``B``-bit quantization, in
+#: steps ``S / (2^B - 1)`` (dimensionless).
+QUANTIZATION_FACTOR = 0.81
+
+#: ``delta`` of :func:`combined_error` (dimensionless).
+COMBINE_DELTA = 0.15
+
+#: Measured tessellation error over meshoptimizer's own estimate, before a level of the
+#: mesh at hand is measured (dimensionless).
+KAPPA_PRIOR = 2.5
+
+#: Until a result meets an error budget, candidates are aimed at this fraction of it:
+#: the combined-error model is within 3-6% at its 90th percentile.
+AIM = 0.96
+
+#: Once one does, candidates predicted up to this fraction of it are tried: measured
+#: errors scatter around the prediction (quantization can lower a level's error), and
+#: a miss costs a pass, not the result.
+EXPLORE_AIM = 1.03
+
+#: The search stops when no candidate promises this relative gain (fewer bytes, or less
+#: error) over the best result so far.
+STOP_GAIN = 0.03
+
+#: Passes spent looking for a better result once one meets the budget.
+PASSES_AFTER_MET = 2
+
+#: Bits tried above the least ``B`` whose quantization alone fits an error budget.
+BITS_ABOVE = 2
+
+#: Bits tried on each side of the model's optimum for a size budget.
+BITS_AROUND = 2
+
+#: Rounds of locking the original vertices a meshopt level strays from, then
+#: simplifying again.
+LOCK_ROUNDS = 2
+
+#: A level that strays from more of the original's vertices than this fraction of its
+#: own vertex count is too coarse for its aim: locking would only bloat it. (The welded
+#: Stanford dragon at meshoptimizer's 5e-4 S error target strays from 1,003 vertices at
+#: 20,071: locking them took its error from 1.35e-2 to 1.25e-3 S.)
+LOCK_MAX_FRACTION = 0.1
+
+#: Encodings shrunk to fit a size budget before a candidate is given up.
+FIT_TRIES = 3
+
+#: Simplifications tried to find a level of a given tessellation error.
+LEVEL_TRIES = 3
+
+#: Two levels whose simplifier parameters differ by more than this (in log) and whose
+#: errors agree within 1% mark a plateau: finer levels of that simplifier are not sought
+#: below it.
+PLATEAU_SPAN = 0.25
+
+#: A level found for a tessellation error ``t*`` is close enough from ``LEVEL_CLOSE t*``
+#: to ``t*``.
+LEVEL_CLOSE = 0.8
+
+#: For an original of more faces than this, each simplification costs about a second:
+#: ``"auto"`` takes meshoptimizer without comparing (fast-simplification takes twice as
+#: long on the dragon), each B gets one level per pass and one B above the least is
+#: tried.
+BASE_FACES = 200_000
+
+#: ``"auto"`` takes fast-simplification only when its quick estimate is below this
+#: fraction of meshoptimizer's: meshoptimizer's levels can lock spikes.
+AUTO_MARGIN = 0.85
+
+#: Meshes of at most this many vertices are cheap to encode whole.
+CHEAP_VERTICES = 100_000
+
+
+def quantization_error(bits: int, grid_size: float) -> float:
+    """``E_Q(B) = c_Q S / (2^B - 1)`` (length): see the module docs."""
+    return QUANTIZATION_FACTOR * grid_size / (2.0**bits - 1.0)
+
+
+def combined_error(tessellation: float, quantization: float, delta: float = COMBINE_DELTA) -> float:
+    """Predicted Hausdorff error of a level with tessellation error ``t`` quantized with
+    error ``q``: ``max(t, q) (1 + delta min/max)`` (length)."""
+    high, low = max(tessellation, quantization), min(tessellation, quantization)
+    return high if high <= 0 else high * (1.0 + delta * low / high)
+
+
+def interaction(measured: float, tessellation: float, quantization: float) -> float:
+    """The ``delta`` for which :func:`combined_error` gives ``measured``, within [0, 1]
+    (0 when there is no smaller part to interact with)."""
+    high, low = max(tessellation, quantization), min(tessellation, quantization)
+    if low <= 0:
+        return 0.0
+    return float(min(max((measured - high) / low, 0.0), 1.0))
+
+
+def allowed_tessellation(budget: float, quantization: float, delta: float = COMBINE_DELTA) -> float:
+    """The largest ``t`` whose :func:`combined_error` with ``q`` stays within ``budget``;
+    negative when quantization alone exceeds it."""
+    if quantization >= budget:
+        return -1.0
+    if quantization * (1.0 + delta) >= budget:
+        return (budget - quantization) / delta
+    return budget - delta * quantization
+
+
+@dataclass(frozen=True)
+class Iteration:
+    """One pass of the search: the candidate it measured.
+
+    Attributes
+    ----------
+    level : int
+        Index of the mesh in :attr:`Search.levels` (0: the original).
+    source : str
+        What the mesh is: ``"original"``, ``"meshopt"`` (simplified to an error target),
+        ``"vertices"`` (simplified to a vertex count) or ``"lod"``.
+    bits : int
+        Bits per coordinate B.
+    planned_vertices : int
+        The vertex count of the planned candidate (the plan's, for a vertex budget).
+    vertices, faces : int
+        Of the encoded mesh.
+    predicted_error : float
+        The plan's error (length).
+    predicted_size_bits : float
+        The plan's size (bits).
+    measured_error : float
+        Sampled symmetric Hausdorff distance between the original and the decoded output
+        (length).
+    measured_size_bits : int
+        Size of the encoded file (bits).
+    measured_error_upper : float or None
+        With ``certify``: a certified upper bound on the true distance (length).
+    met : bool
+        Whether this pass met the budget.
+    seconds : float
+        Wall time of the pass, planning and building included.
+    """
+
+    level: int
+    source: str
+    bits: int
+    planned_vertices: int
+    vertices: int
+    faces: int
+    predicted_error: float
+    predicted_size_bits: float
+    measured_error: float
+    measured_size_bits: int
+    measured_error_upper: float | None
+    met: bool
+    seconds: float
+
+    @property
+    def decisive_error(self) -> float:
+        """The error a budget is judged by: the certified bound when there is one."""
+        upper = self.measured_error_upper
+        return self.measured_error if upper is None else upper
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass
+class Level:
+    """A mesh the search can quantize: the original, a simplified one, or a given LOD.
+
+    Attributes
+    ----------
+    source : str
+        ``"original"``, ``"meshopt"`` (an error target), ``"vertices"`` (a vertex target)
+        or ``"lod"``.
+    vertices, faces : ndarray
+    target_error : float or None
+        meshoptimizer's error target (length).
+    target_vertices : int or None
+    simplifier_error : float or None
+        The simplifier's own estimate (length).
+    locked : int
+        Original vertices locked in place.
+    lod : int or None
+        Index among the given levels of detail.
+    origin, grid_size
+        The level's cube grid.
+    encodings : dict
+        ``B -> Encoded``.
+    errors : dict
+        ``B -> measured error`` (length; the certified bound when certifying).
+    quick : float or None
+        :meth:`Reference.quick_distance` of the unquantized level (length).
+    """
+
+    source: str
+    vertices: np.ndarray = field(repr=False)
+    faces: np.ndarray = field(repr=False)
+    target_error: float | None = None
+    target_vertices: int | None = None
+    simplifier_error: float | None = None
+    locked: int = 0
+    lod: int | None = None
+    method: str | None = None
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
+    grid_size: float = 0.0
+    encodings: dict[int, Encoded] = field(default_factory=dict, repr=False)
+    errors: dict[int, float] = field(default_factory=dict)
+    quick: float | None = None
+
+    @property
+    def vertex_count(self) -> int:
+        return len(self.vertices)
+
+    @property
+    def parameter(self) -> float:
+        """What the simplifier was driven by: the error target, else the vertex count."""
+        if self.target_error is not None:
+            return self.target_error
+        return float(self.target_vertices or self.vertex_count)
+
+    def interactions(self, ratio: float) -> list[float]:
+        """:func:`interaction` of each measurement of the level, its tessellation error
+        taken as ``ratio`` times its quick estimate."""
+        if self.quick is None and self.source != "original":
+            return []
+        t = 0.0 if self.source == "original" else ratio * float(self.quick or 0.0)
+        return [
+            interaction(error, t, quantization_error(bits, self.grid_size))
+            for bits, error in self.errors.items()
+        ]
+
+    def ratio(self) -> float | None:
+        """Measured over quick-estimated tessellation error, from the measurements where
+        tessellation dominates (quantization below half the error); None without one."""
+        if not self.quick:
+            return None
+        ratios = [
+            (error - COMBINE_DELTA * q) / self.quick
+            for bits, error in self.errors.items()
+            for q in [quantization_error(bits, self.grid_size)]
+            if q < 0.5 * error
+        ]
+        return max(ratios) if ratios else None
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    level: int
+    bits: int
+    size_bits: float
+    error: float
+
+
+class Search:
+    """The state and steps of the search: :meth:`propose` plans (and builds) candidates
+    and returns the one to measure, :meth:`measure` measures it; :func:`run_search`
+    repeats them.
+
+    Parameters
+    ----------
+    original : (vertices, faces)
+        The welded original.
+    reference : Reference
+        Its BVH and samples, built once.
+    constraint : {"error", "size", "vertices"}
+    budget : float
+        Length, bits or a vertex count.
+    k : float
+        The original's grid-normalised K.
+    grid_size : float
+        ``S`` of the original (length).
+    max_bits : int
+        Largest ``B`` (format and input precision).
+    format : str
+        Encoder.
+    alpha, connectivity_bits : float
+        The paper's size model, for the first plan.
+    method : str or None
+        ``"meshopt"``, ``"fast-simplification"``, or ``"auto"`` (the one that simplifies
+        this mesh closer to the original, see :meth:`simplifier_method`); None with
+        ``simplifier`` or ``lods``.
+    simplifier : callable, optional
+        ``simplifier(vertices, faces, target_vertices) -> (vertices, faces)``.
+    lods : sequence of meshes, optional
+        The levels to choose from, with the original.
+    samples : int
+        Area samples of each candidate.
+    certify : bool
+        Judge an error budget by a certified upper bound.
+    tolerance : float or None
+        Refinement tolerance of that bound (length).
+    """
+
+    def __init__(
+        self,
+        original: tuple[np.ndarray, np.ndarray],
+        reference: Reference,
+        *,
+        constraint: str,
+        budget: float,
+        k: float,
+        grid_size: float,
+        max_bits: int,
+        format: str,
+        alpha: float,
+        connectivity_bits: float,
+        method: str | None = "auto",
+        simplifier: Simplifier | None = None,
+        lods: Sequence[Any] | None = None,
+        samples: int,
+        certify: bool = False,
+        tolerance: float | None = None,
+    ) -> None:
+        self.original = original
+        self.reference = reference
+        self.constraint = constraint
+        self.budget = float(budget)
+        self.k = float(k)
+        self.grid_size = float(grid_size)
+        self.max_bits = int(max_bits)
+        self.format = format
+        self.alpha = float(alpha)
+        self.connectivity_bits = float(connectivity_bits)
+        self.method = method
+        self.simplifier = simplifier
+        self.samples = int(samples)
+        self.certify = certify
+        self.tolerance = tolerance
+        self.original_box = _box(original)
+        self.used = np.unique(original[1])
+        self.available = len(self.used)
+        self.levels: list[Level] = []
+        self.measurements: list[Iteration] = []
+        self.seconds = {"simplify": 0.0, "encode": 0.0, "hausdorff": 0.0, "estimate": 0.0}
+        self.plan = self._first_plan()
+        #: Quick estimate of each simplifier tried by ``"auto"`` (length).
+        self.simplifier_estimates: dict[str, float] = {}
+        self._add(Level("original", *original))
+        self.lods = lods is not None
+        #: Tessellation error below which a simplifier's levels stopped improving.
+        self.floor: dict[str, float] = {}
+        #: Original vertices some meshopt level left too far: locked in every later one.
+        self.strays = np.zeros(len(original[0]), dtype=bool)
+        if lods is not None:
+            for index, lod in enumerate(lods):
+                vertices, faces = as_mesh(lod)
+                self._add(Level("lod", vertices, faces.astype(np.int64), lod=index))
+
+    # --- models -------------------------------------------------------------------------
+
+    def _first_plan(self) -> model.Allocation | None:
+        options = {
+            "grid_size": self.grid_size,
+            "alpha": self.alpha,
+            "connectivity_bits": self.connectivity_bits,
+        }
+        if self.constraint == "size":
+            smallest = MODEL_MIN_VERTICES * (
+                3.0 * self.alpha * MODEL_MIN_BITS + self.connectivity_bits
+            )
+            if self.budget < smallest:
+                return None
+            return model.plan_for_size(self.budget, self.k, **options)
+        if self.constraint == "error":
+            if self.budget >= self.grid_size:
+                return None
+            return model.plan_for_error(self.budget, self.k, **options)
+        return model.plan_for_vertices(max(self.budget, MODEL_MIN_VERTICES), self.k, **options)
+
+    def ratio(self, level: Level | None = None) -> float:
+        """Full over quick tessellation error: the level's own when measured, else the
+        median over the measured levels (1 before any: the quick estimate is within 10%
+        of the full measurement on the bunny, horse and fandisk; on the dragon's thin
+        parts it finds half)."""
+        own = None if level is None else level.ratio()
+        if own is not None:
+            return max(own, 1.0)
+        seen = [r for lv in self.levels for r in [lv.ratio()] if r is not None]
+        return max(float(np.median(seen)), 1.0) if seen else 1.0
+
+    def delta(self, level: Level | None = None) -> float:
+        """The interaction ``delta`` to predict with: the level's own (the largest
+        measured), else the mean over the measured levels with :data:`COMBINE_DELTA` as
+        one more observation."""
+        if level is not None and level.interactions(self.ratio(level)):
+            return max(level.interactions(self.ratio(level)))
+        seen = [
+            max(lv.interactions(self.ratio(lv)))
+            for lv in self.levels
+            if lv.interactions(self.ratio(lv))
+        ]
+        return (COMBINE_DELTA + sum(seen)) / (1 + len(seen))
+
+    def tessellation(self, level: Level) -> float:
+        """The level's tessellation error (length): 0 for the original, else the quick
+        estimate of the unquantized level times :meth:`ratio`."""
+        return self.ratio(level) * self._estimate(level)
+
+    def _estimate(self, level: Level) -> float:
+        """The quick estimate of a level's tessellation error, computed once (length)."""
+        if level.source == "original":
+            level.quick = 0.0
+            return 0.0
+        if level.quick is None:
+            begin = time.perf_counter()
+            level.quick = self.reference.quick_distance((level.vertices, level.faces))
+            self.seconds["estimate"] += time.perf_counter() - begin
+        return level.quick
+
+    # --- levels -------------------------------------------------------------------------
+
+    def _add(self, level: Level) -> int:
+        """Keep a level, with the cube grid over the original's box widened to hold it (a
+        simplifier may move a vertex slightly outside)."""
+        low, high = _box((level.vertices, level.faces))
+        level.origin, level.grid_size = cube_grid(
+            np.minimum(self.original_box[0], low), np.maximum(self.original_box[1], high)
+        )
+        self.levels.append(level)
+        return len(self.levels) - 1
+
+    def _can_simplify(self) -> bool:
+        return not self.lods and (self.method is not None or self.simplifier is not None)
+
+    def simplifier_method(self) -> str | None:
+        """The simplifier of this search: the one asked for, or for ``"auto"`` the one
+        whose simplification to the first plan's vertex count lies closer to the original
+        by the quick estimate; None for a caller's simplifier."""
+        if self.simplifier is not None or self.method is None:
+            return None
+        if self.method != "auto":
+            return self.method
+        planned = self.plan.whole_vertices if self.plan is not None else 1000.0
+        target = int(min(max(planned, 100.0), 0.5 * self.available))
+        if target < MODEL_MIN_VERTICES or len(self.original[1]) > BASE_FACES:
+            self.method = "meshopt"
+            return self.method
+        indices = {
+            method: self._simplified(method, vertices=target)
+            for method in ("meshopt", "fast-simplification")
+        }
+        self.simplifier_estimates = {
+            method: self._estimate(self.levels[i]) for method, i in indices.items()
+        }
+        estimates = self.simplifier_estimates
+        better = estimates["fast-simplification"] < AUTO_MARGIN * estimates["meshopt"]
+        self.method = "fast-simplification" if better else "meshopt"
+        return self.method
+
+    def _simplified(
+        self,
+        method: str | None,
+        *,
+        vertices: float | None = None,
+        tau: float | None = None,
+        aim: float | None = None,
+    ) -> int:
+        """The level a simplifier makes for a vertex target or (meshopt) an error target
+        ``tau``: a built one within 3%, or a new one. For meshopt, original vertices left
+        farther than ``aim`` from the level are locked and it is simplified again."""
+        if vertices is not None:
+            vertices = int(max(MODEL_MIN_VERTICES, min(round(vertices), self.available)))
+            if vertices >= self.available:
+                return 0
+        for index, level in enumerate(self.levels):
+            same_method = level.source == ("meshopt" if tau is not None else "vertices") and (
+                level.method == method
+            )
+            wanted = tau if tau is not None else vertices
+            if same_method and wanted and abs(level.parameter / wanted - 1) < 0.03:
+                return index
+        begin = time.perf_counter()
+        if method is None:
+            assert self.simplifier is not None and vertices is not None
+            v, f = self.simplifier(self.original[0], self.original[1], vertices)
+            v, f = as_mesh(v, f)
+            level = Level("vertices", v, f.astype(np.int64), target_vertices=vertices)
+        else:
+            target = {"error": tau} if tau is not None else {"vertices": vertices}
+            locks_at = aim if method == "meshopt" else None
+            result, locked = _simplify_locking(self.original, method, target, locks_at, self.strays)
+            level = Level(
+                "meshopt" if tau is not None else "vertices",
+                result.vertices,
+                result.faces,
+                target_error=tau,
+                target_vertices=vertices,
+                simplifier_error=result.error,
+                locked=locked,
+            )
+        level.method = method
+        self.seconds["simplify"] += time.perf_counter() - begin
+        return self._add(level)
+
+    def _level_for(self, tessellation: float, aim_locks: float | None) -> int | None:
+        """A level whose tessellation error is at most ``tessellation`` and as close to
+        it as a few simplifications find: the simplifier's parameter (meshopt's error
+        target, or a vertex count) is interpolated in log-log between the levels built so
+        far, which are judged by their measured or quick-estimated error."""
+        if not self._can_simplify() or tessellation <= 0:
+            return None
+        method = self.simplifier_method()
+        by_error = method == "meshopt"
+        if tessellation < 0.99 * self.floor.get(method or "", 0.0):
+            return None
+        best: int | None = None
+        tries = LEVEL_TRIES if len(self.original[1]) <= BASE_FACES else 1
+        for _ in range(tries):
+            same = [
+                i
+                for i, level in enumerate(self.levels)
+                if level.source == ("meshopt" if by_error else "vertices")
+                and level.method == method
+            ]
+            known = [(self.tessellation(self.levels[i]), self.levels[i].parameter) for i in same]
+            known_indices = [(self.tessellation(self.levels[i]), i) for i in same]
+            if by_error:
+                tau = _interpolate(sorted(known), tessellation, 1.0 / KAPPA_PRIOR)
+                index = self._simplified(method, tau=tau, aim=aim_locks)
+            else:
+                # More vertices, less error: interpolate the vertex count against 1/t.
+                inverse = sorted((1.0 / t, v) for t, v in known if t > 0)
+                guess = self._paper_vertices(tessellation)
+                vertices = _interpolate(inverse, 1.0 / tessellation, guess * tessellation)
+                index = self._simplified(method, vertices=vertices)
+            t = self.tessellation(self.levels[index])
+            parameter = self.levels[index].parameter
+            plateau = any(
+                i != index
+                and abs(t / t_i - 1) < 0.01
+                and abs(math.log(self.levels[i].parameter / parameter)) > PLATEAU_SPAN
+                for t_i, i in known_indices
+                if t_i > 0
+            )
+            if t <= tessellation and (
+                best is None or self.levels[index].vertex_count < self.levels[best].vertex_count
+            ):
+                best = index
+            if plateau and t > tessellation:
+                # Finer levels do not get closer: remember how low this simplifier gets.
+                self.floor[method or ""] = min(self.floor.get(method or "", np.inf), t)
+            if LEVEL_CLOSE * tessellation <= t <= tessellation or plateau:
+                break
+        return best
+
+    def _paper_vertices(self, tessellation: float) -> float:
+        """The paper's ``V = K S / (3 sqrt(3) E_T)`` (Eq. 18) at half the error (what
+        meshoptimizer's levels measure on the bunny)."""
+        return 0.5 * self.k * self.grid_size / (3.0 * math.sqrt(3.0) * tessellation)
+
+    def _encoded(self, index: int, bits: int) -> Encoded:
+        level = self.levels[index]
+        if bits not in level.encodings:
+            begin = time.perf_counter()
+            level.encodings[bits] = encode(
+                (level.vertices, level.faces),
+                bits,
+                format=self.format,
+                origin=level.origin,
+                grid_size=level.grid_size,
+            )
+            self.seconds["encode"] += time.perf_counter() - begin
+        return level.encodings[bits]
+
+    def _candidate(self, index: int, bits: int) -> _Candidate:
+        level = self.levels[index]
+        error = level.errors.get(bits)
+        if error is None:
+            q = quantization_error(bits, level.grid_size)
+            error = combined_error(self.tessellation(level), q, self.delta(level))
+        return _Candidate(index, bits, float(self._encoded(index, bits).size_bits), error)
+
+    def _tried(self, index: int, bits: int) -> bool:
+        return bits in self.levels[index].errors
+
+    # --- planning -----------------------------------------------------------------------
+
+    def propose(self) -> _Candidate | None:
+        """The next candidate to measure (built and encoded), or None when none promises
+        :data:`STOP_GAIN` over the best result so far."""
+        if self.constraint == "vertices":
+            return None if self.measurements else self._vertices_candidate()
+        first_met = next((i for i, m in enumerate(self.measurements) if m.met), None)
+        if first_met is not None and len(self.measurements) - 1 - first_met >= PASSES_AFTER_MET:
+            return None
+        best = self.best()
+        if self.constraint == "error":
+            ranked = sorted(self._error_candidates(), key=lambda c: (c.size_bits, c.error))
+            if best is not None:
+                limit = (1 - STOP_GAIN) * best.measured_size_bits
+                ranked = [c for c in ranked if c.size_bits < limit]
+        else:
+            ranked = sorted(self._size_candidates(), key=lambda c: (c.error, c.size_bits))
+            if best is not None:
+                ranked = [c for c in ranked if c.error < (1 - STOP_GAIN) * best.decisive_error]
+        if ranked:
+            return ranked[0]
+        return None if self.measurements else self._fallback()
+
+    def _aim(self) -> float:
+        """What error candidates are aimed at (length): see :data:`AIM`."""
+        return (EXPLORE_AIM if self.best() is not None else AIM) * self.budget
+
+    def _error_bits(self) -> range:
+        aim = self._aim()
+        first = next(
+            (b for b in range(1, self.max_bits + 1) if quantization_error(b, self.grid_size) < aim),
+            None,
+        )
+        if first is None:
+            return range(0)
+        above = BITS_ABOVE if len(self.original[1]) <= BASE_FACES else 1
+        return range(first, min(first + above, self.max_bits) + 1)
+
+    def _error_candidates(self) -> list[_Candidate]:
+        """Candidates expected to meet the error budget: for each B, a level whose
+        tessellation error fills the room quantization leaves; and every level built so
+        far, at each B where it is expected to meet the budget."""
+        aim = self._aim()
+        bits_range = self._error_bits()
+        for bits in bits_range:
+            room = allowed_tessellation(aim, quantization_error(bits, self.grid_size), self.delta())
+            self._level_for(room, room)
+        out = []
+        for index, level in enumerate(self.levels):
+            for bits in bits_range:
+                if self._tried(index, bits) or not self._may_meet(level, bits):
+                    continue
+                if level.source == "original" and not self._original_worth_encoding(bits):
+                    continue
+                candidate = self._candidate(index, bits)
+                if candidate.error <= aim:
+                    out.append(candidate)
+        return out
+
+    def _original_worth_encoding(self, bits: int) -> bool:
+        """Whether the original at ``bits`` may be the smallest candidate: always when
+        encoding it is cheap or done; else unless the simplified levels' bits per vertex
+        at ``bits``, halved, times its vertex count exceed the smallest of them."""
+        if bits in self.levels[0].encodings or self.available <= CHEAP_VERTICES:
+            return True
+        sizes = [
+            (lv.encodings[bits].size_bits, lv.vertex_count)
+            for lv in self.levels[1:]
+            if bits in lv.encodings
+        ]
+        if not sizes:
+            return False
+        rate = min(size / count for size, count in sizes)
+        return 0.5 * rate * self.available < min(size for size, _ in sizes)
+
+    def _may_meet(self, level: Level, bits: int) -> bool:
+        """Whether ``bits`` is still worth trying on a level for an error budget: not
+        when the level missed the budget at as many bits or more (fewer cannot do
+        better), nor when it met it with fewer (more only cost bytes)."""
+        for measured_bits, error in level.errors.items():
+            if measured_bits >= bits and error > self.budget:
+                return False
+            if measured_bits < bits and error <= self.budget:
+                return False
+        return True
+
+    def _size_bits(self) -> list[int]:
+        centre = [round(self.plan.bits)] if self.plan is not None else [8]
+        best = self.best()
+        if best is not None:
+            centre.append(best.bits)
+        wanted = {
+            b
+            for c in centre
+            for b in range(c - BITS_AROUND, c + BITS_AROUND + 1)
+            if 1 <= b <= self.max_bits
+        }
+        return sorted(wanted)
+
+    def _size_candidates(self) -> list[_Candidate]:
+        """For each B near the optimum, the finest level whose encoding fits the size;
+        the original at the most bits that fit; and every encoding built so far that
+        fits."""
+        for bits in self._size_bits():
+            self._fitting_level(bits)
+        self._original_most_bits()
+        out = []
+        for index, level in enumerate(self.levels):
+            for bits, encoded in level.encodings.items():
+                if encoded.size_bits <= self.budget and not self._tried(index, bits):
+                    out.append(self._candidate(index, bits))
+        return out
+
+    def _original_most_bits(self) -> None:
+        """Encode the original at the most bits whose file fits the size budget (a
+        bisection on B: sizes grow with B), when that is cheap or may fit."""
+        if not self._original_fits(1):
+            return
+        lo, hi = 1, self.max_bits
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            lo, hi = (mid, hi) if self._original_fits(mid) else (lo, mid - 1)
+
+    def _fitting_level(self, bits: int) -> int | None:
+        """The finest level whose encoding at ``bits`` fits the size budget: the original
+        if it fits, else a simplification sized by the bits per vertex seen."""
+        if not self._can_simplify():
+            fitting = [
+                i
+                for i, level in enumerate(self.levels)
+                if level.vertex_count <= CHEAP_VERTICES or bits in level.encodings
+                if self._encoded(i, bits).size_bits <= self.budget
+            ]
+            return max(fitting, key=lambda i: self.levels[i].vertex_count, default=None)
+        if self._original_fits(bits):
+            return 0
+        method = self.simplifier_method()
+        vertices = AIM * self.budget / self._rate(bits)
+        for _ in range(FIT_TRIES):
+            if vertices < MODEL_MIN_VERTICES:
+                return None
+            index = self._simplified(method, vertices=vertices)
+            size = self._encoded(index, bits).size_bits
+            if size <= self.budget:
+                return index
+            vertices = self.levels[index].vertex_count * AIM * self.budget / size
+        return None
+
+    def _original_fits(self, bits: int) -> bool:
+        original = self.levels[0]
+        if bits not in original.encodings and self.available > CHEAP_VERTICES:
+            # Encoding a large original is worth it only when it can fit.
+            rates = [
+                lv.encodings[b].size_bits / lv.vertex_count
+                for lv in self.levels[1:]
+                for b in lv.encodings
+                if b <= bits
+            ]
+            if not rates or 0.5 * min(rates) * self.available > self.budget:
+                return False
+        return self._encoded(0, bits).size_bits <= self.budget
+
+    def _rate(self, bits: int) -> float:
+        """Bits per vertex of a simplified level at ``bits``: the encodings seen at that
+        B, else the paper's ``3 alpha B + T`` scaled by what was seen."""
+        seen = [
+            (level.encodings[b].size_bits / level.vertex_count, b)
+            for level in self.levels[1:]
+            for b in level.encodings
+        ]
+        same = [rate for rate, b in seen if b == bits]
+        if same:
+            return float(np.median(same))
+        paper = 3.0 * self.alpha * bits + self.connectivity_bits
+        if seen:
+            model_rates = [3.0 * self.alpha * b + self.connectivity_bits for _, b in seen]
+            scale = np.median([r / m for (r, _), m in zip(seen, model_rates, strict=True)])
+            return float(scale * paper)
+        return paper
+
+    def _vertices_candidate(self) -> _Candidate:
+        assert self.plan is not None
+        bits = int(np.clip(self.plan.whole_bits, 1, self.max_bits))
+        target = min(self.budget, self.available)
+        if self.lods:
+            index = 1 + closest_level([(lv.vertices, lv.faces) for lv in self.levels[1:]], target)
+        elif target >= self.available:
+            index = 0
+        else:
+            index = self._simplified(self.simplifier_method(), vertices=target)
+        return self._candidate(index, bits)
+
+    def _fallback(self) -> _Candidate:
+        """Nothing is expected to meet the budget: the most accurate output for an error
+        budget, the smallest for a size budget."""
+        if self.constraint == "error":
+            fitting = self._error_bits()
+            return self._candidate(0, fitting[0] if len(fitting) else self.max_bits)
+        if self._can_simplify():
+            index = self._simplified(self.simplifier_method(), vertices=MODEL_MIN_VERTICES)
+        else:
+            index = min(range(len(self.levels)), key=lambda i: self.levels[i].vertex_count)
+        return self._candidate(index, int(MODEL_MIN_BITS))
+
+    # --- measuring ----------------------------------------------------------------------
+
+    def measure(self, candidate: _Candidate, began: float) -> Iteration:
+        """Measure one candidate (its encoding is built) and record it."""
+        level = self.levels[candidate.level]
+        encoded = self._encoded(candidate.level, candidate.bits)
+        start = time.perf_counter()
+        h = self.reference.hausdorff(
+            (encoded.vertices, encoded.faces),
+            samples=self.samples,
+            bounds=self.certify,
+            tolerance=self.tolerance,
+        )
+        self.seconds["hausdorff"] += time.perf_counter() - start
+        decisive = h.distance if h.upper is None else h.upper
+        level.errors[candidate.bits] = decisive
+        if self.constraint == "error":
+            met = decisive <= self.budget
+        elif self.constraint == "size":
+            met = encoded.size_bits <= self.budget
+        else:
+            met = True
+        record = Iteration(
+            level=candidate.level,
+            source=level.source,
+            bits=candidate.bits,
+            planned_vertices=(
+                round(self.plan.whole_vertices)
+                if self.constraint == "vertices" and self.plan is not None
+                else level.vertex_count
+            ),
+            vertices=len(encoded.vertices),
+            faces=len(encoded.faces),
+            predicted_error=candidate.error,
+            predicted_size_bits=candidate.size_bits,
+            measured_error=h.distance,
+            measured_size_bits=encoded.size_bits,
+            measured_error_upper=h.upper,
+            met=met,
+            seconds=time.perf_counter() - began,
+        )
+        self.measurements.append(record)
+        return record
+
+    # --- results ------------------------------------------------------------------------
+
+    def best(self) -> Iteration | None:
+        """The best measurement that meets the budget: fewest bytes for an error budget,
+        least error for a size budget."""
+        met = [m for m in self.measurements if m.met]
+        if not met:
+            return None
+        if self.constraint == "size":
+            return min(met, key=lambda m: (m.decisive_error, m.measured_size_bits))
+        return min(met, key=lambda m: (m.measured_size_bits, m.decisive_error))
+
+    def closest(self) -> Iteration:
+        """The measurement that misses the budget least."""
+        if self.constraint == "size":
+            return min(self.measurements, key=lambda m: m.measured_size_bits)
+        return min(self.measurements, key=lambda m: m.decisive_error)
+
+    def encoded(self, measurement: Iteration) -> Encoded:
+        return self.levels[measurement.level].encodings[measurement.bits]
+
+
+def _simplify_locking(
+    source: tuple[np.ndarray, np.ndarray],
+    method: str,
+    target: dict[str, Any],
+    aim: float | None,
+    known_strays: np.ndarray,
+) -> tuple[Any, int]:
+    """Simplify ``source``; for meshopt with an ``aim``, lock the source vertices the
+    result leaves farther than ``aim`` and simplify again (:data:`LOCK_ROUNDS` times at
+    most, while they are at most :data:`LOCK_MAX_FRACTION` of the result).
+    ``known_strays`` (one flag per source vertex) starts locked, and gains every vertex
+    locked here: a vertex left far from one level tends to be from the next. Returns the
+    result and how many vertices were locked."""
+    options = {"update_positions": True} if method == "meshopt" else {}
+    use_locks = method == "meshopt" and aim is not None and aim > 0
+    locked = known_strays.copy() if use_locks else np.zeros(len(source[0]), dtype=bool)
+    if locked.any():
+        result = simplify(source, method=method, locked=locked, **target, **options)
+    else:
+        result = simplify(source, method=method, **target, **options)
+    if not use_locks:
+        return result, 0
+    used = np.unique(source[1])
+    for _ in range(LOCK_ROUNDS):
+        distances = ClosestPoints(result.mesh).query(source[0][used]).distances
+        strays = used[distances > aim]
+        if len(strays) == 0 or len(strays) > LOCK_MAX_FRACTION * max(result.vertex_count, 1):
+            break
+        locked[strays] = True
+        result = simplify(source, method=method, locked=locked, **target, **options)
+    known_strays |= locked
+    return result, int(locked.sum())
+
+
+def _interpolate(points: list[tuple[float, float]], x: float, slope: float) -> float:
+    """``y(x)`` through ``(x_i, y_i)`` (increasing together), linear in log-log between
+    the two around ``x``, proportional to the nearest one beyond them, ``slope * x``
+    without any."""
+    below = [(xi, yi) for xi, yi in points if xi <= x]
+    above = [(xi, yi) for xi, yi in points if xi > x]
+    if below and above:
+        (x0, y0), (x1, y1) = max(below), min(above)
+        if y1 > y0 > 0:
+            w = math.log(x / x0) / math.log(x1 / x0)
+            return y0 * (y1 / y0) ** w
+        return math.sqrt(y0 * y1) if y0 > 0 else y1
+    if above:
+        x1, y1 = min(above)
+        return y1 * x / x1
+    if below:
+        x0, y0 = max(below)
+        return y0 * x / x0
+    return slope * x
+
+
+def _box(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding box of the vertices some face references."""
+    used = mesh[0][np.unique(mesh[1])]
+    return used.min(axis=0), used.max(axis=0)
+
+
+def run_search(
+    search: Search, max_passes: int, progress: Callable[[Iteration], None] | None = None
+) -> None:
+    """Plan, build and measure until the search stops or ``max_passes`` are spent."""
+    for _ in range(max_passes):
+        began = time.perf_counter()
+        candidate = search.propose()
+        if candidate is None:
+            break
+        record = search.measure(candidate, began)
+        if progress is not None:
+            progress(record)
