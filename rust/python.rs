@@ -391,6 +391,7 @@ fn sample_mesh<'py>(
 /// One-sided sampled Hausdorff distance from a sampled mesh to a tree, reusing its samples.
 #[pyfunction]
 #[pyo3(signature = (source, tree, statistics, bounds, tolerance, refine_budget, return_samples))]
+#[allow(clippy::too_many_arguments)]
 fn hausdorff_from_samples<'py>(
     py: Python<'py>,
     source: &PySampledMesh,
