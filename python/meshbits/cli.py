@@ -206,6 +206,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     args.lods, args.alpha, args.connectivity_bits = None, None, None
     args.max_iterations, args.samples, args.seed = 6, None, 0
     args.estimator, args.quiet, args.certify = "circumsphere", args.json, False
+    args.method = "auto"
     if not args.json:
         print(
             f"meshbits demo: compressing {args.mesh.name} (Spot by Keenan Crane, public "
@@ -255,6 +256,13 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--lods", type=Path, nargs="+", help="levels of detail to pick from, instead of simplifying"
+    )
+    p.add_argument(
+        "--method",
+        choices=("auto", "meshopt", "fast-simplification"),
+        default="auto",
+        help="simplifier: meshoptimizer (error targets, spikes locked), fast-simplification, "
+        "or auto (whichever simplifies this mesh closer to the original; default)",
     )
     p.add_argument(
         "--alpha",
@@ -322,7 +330,7 @@ def _run_compress(args: argparse.Namespace) -> int:
     def report(it: Any) -> None:
         if not args.quiet:
             print(
-                f"  pass: B = {it.bits}, V = {it.vertices} (planned {it.planned_vertices}); "
+                f"  pass: {it.source} mesh, B = {it.bits}, V = {it.vertices}; "
                 f"error {it.measured_error:.4g} (model {it.predicted_error:.4g}), "
                 f"{it.measured_size_bits // 8} bytes (model {it.predicted_size_bits / 8:.0f})"
                 f"{'' if it.met else ': misses the budget'}",
@@ -336,6 +344,7 @@ def _run_compress(args: argparse.Namespace) -> int:
         vertices=args.vertices,
         relative=args.relative,
         lods=lods,
+        method=args.method,
         format=_FORMATS.get(suffix, "draco"),
         alpha=DRACO_ALPHA if args.alpha is None else args.alpha,
         connectivity_bits=(

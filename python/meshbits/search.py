@@ -90,7 +90,12 @@ AIM = 0.96
 #: Once one does, candidates predicted up to this fraction of it are tried: measured
 #: errors scatter around the prediction (quantization can lower a level's error), and
 #: a miss costs a pass, not the result.
-EXPLORE_AIM = 1.03
+EXPLORE_AIM = 1.06
+
+#: A result within an error budget is preferred when it meets it with this fraction to
+#: spare: sampled distances are lower bounds, and an independent measurement with other
+#: samples can find up to about 2% more (Open3D, in benches/frontier.py).
+CLEAR_MARGIN = 0.015
 
 #: The search stops when no candidate promises this relative gain (fewer bytes, or less
 #: error) over the best result so far.
@@ -115,11 +120,21 @@ LOCK_ROUNDS = 2
 #: 20,071: locking them took its error from 1.35e-2 to 1.25e-3 S.)
 LOCK_MAX_FRACTION = 0.1
 
-#: Encodings shrunk to fit a size budget before a candidate is given up.
+#: Simplifications tried to fit a size budget at one B.
 FIT_TRIES = 3
+
+#: A level for a size budget is aimed at this fraction of it (Draco's bytes per vertex
+#: vary by a few percent between levels)...
+FIT_AIM = 0.98
+
+#: ...and is fine once its file uses this fraction of it.
+FIT_USED = 0.94
 
 #: Simplifications tried to find a level of a given tessellation error.
 LEVEL_TRIES = 3
+
+#: Smallest step (a ratio) of a simplifier's parameter past a level that was too coarse.
+MIN_STEP = 1.15
 
 #: Two levels whose simplifier parameters differ by more than this (in log) and whose
 #: errors agree within 1% mark a plateau: finer levels of that simplifier are not sought
@@ -137,8 +152,8 @@ LEVEL_CLOSE = 0.8
 BASE_FACES = 200_000
 
 #: ``"auto"`` takes fast-simplification only when its quick estimate is below this
-#: fraction of meshoptimizer's: meshoptimizer's levels can lock spikes.
-AUTO_MARGIN = 0.85
+#: fraction of meshoptimizer's (with its strays locked).
+AUTO_MARGIN = 0.97
 
 #: Meshes of at most this many vertices are cheap to encode whole.
 CHEAP_VERTICES = 100_000
@@ -505,16 +520,14 @@ class Search:
         if target < MODEL_MIN_VERTICES or len(self.original[1]) > BASE_FACES:
             self.method = "meshopt"
             return self.method
-        indices = {
-            method: self._simplified(method, vertices=target)
-            for method in ("meshopt", "fast-simplification")
-        }
-        self.simplifier_estimates = {
-            method: self._estimate(self.levels[i]) for method, i in indices.items()
-        }
-        estimates = self.simplifier_estimates
-        better = estimates["fast-simplification"] < AUTO_MARGIN * estimates["meshopt"]
-        self.method = "fast-simplification" if better else "meshopt"
+        fast = self._estimate(self.levels[self._simplified("fast-simplification", vertices=target)])
+        # meshoptimizer with the vertices it strays from beyond fast-simplification's error
+        # locked: what its levels will be.
+        meshopt = self._estimate(
+            self.levels[self._simplified("meshopt", vertices=target, aim=fast)]
+        )
+        self.simplifier_estimates = {"meshopt": meshopt, "fast-simplification": fast}
+        self.method = "fast-simplification" if fast < AUTO_MARGIN * meshopt else "meshopt"
         return self.method
 
     def _simplified(
@@ -586,12 +599,14 @@ class Search:
             known_indices = [(self.tessellation(self.levels[i]), i) for i in same]
             if by_error:
                 tau = _interpolate(sorted(known), tessellation, 1.0 / KAPPA_PRIOR)
+                tau = _stepped(tau, known, tessellation, finer_is_smaller=True)
                 index = self._simplified(method, tau=tau, aim=aim_locks)
             else:
                 # More vertices, less error: interpolate the vertex count against 1/t.
                 inverse = sorted((1.0 / t, v) for t, v in known if t > 0)
                 guess = self._paper_vertices(tessellation)
                 vertices = _interpolate(inverse, 1.0 / tessellation, guess * tessellation)
+                vertices = _stepped(vertices, known, tessellation, finer_is_smaller=False)
                 index = self._simplified(method, vertices=vertices)
             t = self.tessellation(self.levels[index])
             parameter = self.levels[index].parameter
@@ -650,7 +665,14 @@ class Search:
         :data:`STOP_GAIN` over the best result so far."""
         if self.constraint == "vertices":
             return None if self.measurements else self._vertices_candidate()
-        first_met = next((i for i, m in enumerate(self.measurements) if m.met), None)
+        first_met = next(
+            (
+                i
+                for i, m in enumerate(self.measurements)
+                if m.met and (self.constraint != "error" or self._clear(m))
+            ),
+            None,
+        )
         if first_met is not None and len(self.measurements) - 1 - first_met >= PASSES_AFTER_MET:
             return None
         best = self.best()
@@ -665,7 +687,19 @@ class Search:
                 ranked = [c for c in ranked if c.error < (1 - STOP_GAIN) * best.decisive_error]
         if ranked:
             return ranked[0]
-        return None if self.measurements else self._fallback()
+        if not self.measurements:
+            return self._fallback()
+        return self._clearing(best)
+
+    def _clearing(self, best: Iteration | None) -> _Candidate | None:
+        """When the best result meets an error budget without :data:`CLEAR_MARGIN` to
+        spare, its level at one more bit (a last pass); else None."""
+        if self.constraint != "error" or best is None or self._clear(best):
+            return None
+        bits = best.bits + 1
+        if bits > self.max_bits or self._tried(best.level, bits):
+            return None
+        return self._candidate(best.level, bits)
 
     def _aim(self) -> float:
         """What error candidates are aimed at (length): see :data:`AIM`."""
@@ -781,16 +815,26 @@ class Search:
         if self._original_fits(bits):
             return 0
         method = self.simplifier_method()
-        vertices = AIM * self.budget / self._rate(bits)
+        vertices = FIT_AIM * self.budget / self._rate(bits)
+        fitting: int | None = None
+        aim = FIT_AIM
         for _ in range(FIT_TRIES):
             if vertices < MODEL_MIN_VERTICES:
-                return None
+                break
             index = self._simplified(method, vertices=vertices)
+            if index == 0:
+                break
             size = self._encoded(index, bits).size_bits
+            count = self.levels[index].vertex_count
             if size <= self.budget:
-                return index
-            vertices = self.levels[index].vertex_count * AIM * self.budget / size
-        return None
+                if fitting is None or count > self.levels[fitting].vertex_count:
+                    fitting = index
+                if size >= FIT_USED * self.budget:
+                    break
+            if size > self.budget:
+                aim *= FIT_AIM  # bytes per vertex grow as levels coarsen: aim lower
+            vertices = count * aim * self.budget / size
+        return fitting
 
     def _original_fits(self, bits: int) -> bool:
         original = self.levels[0]
@@ -902,7 +946,11 @@ class Search:
             return None
         if self.constraint == "size":
             return min(met, key=lambda m: (m.decisive_error, m.measured_size_bits))
-        return min(met, key=lambda m: (m.measured_size_bits, m.decisive_error))
+        return min(met, key=lambda m: (not self._clear(m), m.measured_size_bits, m.decisive_error))
+
+    def _clear(self, measurement: Iteration) -> bool:
+        """Whether a result meets an error budget with :data:`CLEAR_MARGIN` to spare."""
+        return measurement.decisive_error <= (1 - CLEAR_MARGIN) * self.budget
 
     def closest(self) -> Iteration:
         """The measurement that misses the budget least."""
@@ -946,6 +994,27 @@ def _simplify_locking(
         result = simplify(source, method=method, locked=locked, **target, **options)
     known_strays |= locked
     return result, int(locked.sum())
+
+
+def _stepped(
+    parameter: float,
+    known: list[tuple[float, float]],
+    tessellation: float,
+    *,
+    finer_is_smaller: bool,
+) -> float:
+    """``parameter``, moved at least :data:`MIN_STEP` (a ratio) past the nearest level
+    built on the side it has to improve on: where the error plateaus, interpolation
+    creeps, and a plateau is only left by a step."""
+    if finer_is_smaller:  # meshopt's error target: a finer level has a smaller one
+        too_coarse = [p for t, p in known if t > tessellation]
+        if too_coarse:
+            parameter = min(parameter, min(too_coarse) / MIN_STEP)
+    else:  # a vertex count: a finer level has more
+        too_coarse = [p for t, p in known if t > tessellation]
+        if too_coarse:
+            parameter = max(parameter, max(too_coarse) * MIN_STEP)
+    return parameter
 
 
 def _interpolate(points: list[tuple[float, float]], x: float, slope: float) -> float:
