@@ -14,6 +14,7 @@ pub mod adjacency;
 pub mod alloc;
 pub mod bvh;
 pub mod closest;
+pub mod codec;
 pub mod complexity;
 pub mod error;
 pub mod hausdorff;

@@ -14,10 +14,11 @@ use numpy::{
 use pyo3::create_exception;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBytes, PyDict};
 use rayon::prelude::*;
 
 use crate::bvh::TriangleTree;
+use crate::codec;
 use crate::complexity::{self, Estimator, Tolerances};
 use crate::error::{MeshError, VertexIndex};
 use crate::hausdorff::{self, Options};
@@ -725,6 +726,58 @@ fn cluster<'py>(
     Ok(out)
 }
 
+/// meshoptimizer's vertex codec (`EXT_meshopt_compression`, version 0) over rows of
+/// `stride` bytes.
+#[pyfunction]
+fn meshopt_encode_vertices<'py>(
+    py: Python<'py>,
+    data: PyReadonlyArray1<'py, u8>,
+    stride: usize,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let bytes = data
+        .as_slice()
+        .map_err(|e| PyValueError::new_err(format!("data is not contiguous: {e}")))?;
+    let encoded = run_detached(py, || codec::encode_vertices(bytes, stride))?;
+    Ok(PyBytes::new(py, &encoded))
+}
+
+/// meshoptimizer's index codec over a triangle list of `vertex_count` vertices.
+#[pyfunction]
+fn meshopt_encode_triangles<'py>(
+    py: Python<'py>,
+    faces: PyReadonlyArray2<'py, u32>,
+    vertex_count: usize,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let f = triples(&faces, "faces")?;
+    let encoded = run_detached(py, || {
+        codec::encode_triangles(f.as_flattened(), vertex_count)
+    })?;
+    Ok(PyBytes::new(py, &encoded))
+}
+
+/// Unit vectors `(n, 4)` as octahedral signed normalized integers: `(n, 4)` bytes
+/// (`bits <= 8`) or `(n, 8)` (two bytes a component, little-endian).
+#[pyfunction]
+fn meshopt_encode_octahedral<'py>(
+    py: Python<'py>,
+    vectors: PyReadonlyArray2<'py, f32>,
+    bits: u32,
+) -> PyResult<Bound<'py, PyArray2<u8>>> {
+    if vectors.shape()[1] != 4 || !vectors.is_c_contiguous() {
+        return Err(PyValueError::new_err(
+            "vectors must be a C-contiguous (n, 4) float32 array",
+        ));
+    }
+    let flat = vectors
+        .as_slice()
+        .map_err(|e| PyValueError::new_err(format!("vectors: {e}")))?;
+    let (rows_in, _) = flat.as_chunks::<4>();
+    let n = rows_in.len();
+    let encoded = run_detached(py, || codec::encode_octahedral(rows_in, bits))?;
+    let width = encoded.len() / n.max(1);
+    encoded.into_pyarray(py).reshape([n, width])
+}
+
 /// Faces with every vertex replaced by the smallest-index vertex of identical coordinates
 /// (see `adjacency::weld_identical`), and how many vertices were merged.
 #[pyfunction]
@@ -800,6 +853,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(cluster, m)?)?;
     m.add_function(wrap_pyfunction!(faces_as_u32, m)?)?;
     m.add_function(wrap_pyfunction!(weld, m)?)?;
+    m.add_function(wrap_pyfunction!(meshopt_encode_vertices, m)?)?;
+    m.add_function(wrap_pyfunction!(meshopt_encode_triangles, m)?)?;
+    m.add_function(wrap_pyfunction!(meshopt_encode_octahedral, m)?)?;
     m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(get_num_threads, m)?)?;
     Ok(())

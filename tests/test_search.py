@@ -7,7 +7,7 @@ import importlib
 import numpy as np
 import pytest
 from conftest import load
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 import meshbits
@@ -29,6 +29,7 @@ positive = st.floats(1e-9, 1e3, allow_nan=False, allow_infinity=False)
 
 @given(t=positive, q=positive, delta=st.floats(0, 1))
 def test_interaction_inverts_combined_error(t, q, delta):
+    assume(max(t, q) / min(t, q) < 1e6)  # beyond, max + delta min rounds away delta
     assert interaction(combined_error(t, q, delta), t, q) == pytest.approx(delta, abs=1e-6)
 
 

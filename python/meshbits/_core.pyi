@@ -19,6 +19,9 @@ __all__ = [
     "get_num_threads",
     "hausdorff_directed",
     "hausdorff_from_samples",
+    "meshopt_encode_octahedral",
+    "meshopt_encode_triangles",
+    "meshopt_encode_vertices",
     "quantize",
     "sample_mesh",
     "set_num_threads",
@@ -95,6 +98,11 @@ def dequantize(
 def faces_as_u32(
     faces: npt.NDArray[np.int64], vertex_count: int
 ) -> npt.NDArray[np.uint32] | None: ...
+def meshopt_encode_vertices(data: npt.NDArray[np.uint8], stride: int) -> bytes: ...
+def meshopt_encode_triangles(faces: npt.NDArray[np.uint32], vertex_count: int) -> bytes: ...
+def meshopt_encode_octahedral(
+    vectors: npt.NDArray[np.float32], bits: int
+) -> npt.NDArray[np.uint8]: ...
 def weld(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32]
 ) -> tuple[npt.NDArray[np.uint32], int]: ...

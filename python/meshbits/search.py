@@ -286,6 +286,7 @@ class Level:
     locked: int = 0
     lod: int | None = None
     method: str | None = None
+    attributes: dict[str, np.ndarray] | None = field(default=None, repr=False)
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
     grid_size: float = 0.0
     encodings: dict[int, Encoded] = field(default_factory=dict, repr=False)
@@ -326,6 +327,53 @@ class Level:
             if q < 0.5 * error
         ]
         return max(ratios) if ratios else None
+
+
+@dataclass(frozen=True)
+class Attributes:
+    """Per-vertex attributes that travel with the positions through simplification.
+
+    Attributes
+    ----------
+    values : dict
+        ``name -> (n, k)`` arrays, one row per vertex of the original.
+    weights : dict
+        ``name -> weight`` for meshoptimizer's attribute-aware collapse cost (0: carried
+        but not weighed).
+    interpolate : bool
+        Whether attribute values may move with the vertices (meshoptimizer's updated
+        positions); False keeps every kept vertex as it was, attributes included (skins:
+        joint indices do not interpolate).
+    """
+
+    values: dict[str, np.ndarray]
+    weights: dict[str, float]
+    interpolate: bool = True
+
+    def stacked(self) -> tuple[np.ndarray, np.ndarray, list[tuple[str, int]]]:
+        """The values side by side ``(n, K)`` (float32), a weight per column, and each
+        attribute's name and width."""
+        columns, weights, layout = [], [], []
+        for name, array in self.values.items():
+            block = np.asarray(array, dtype=np.float64).reshape(len(array), -1)
+            columns.append(block)
+            weights += [float(self.weights.get(name, 0.0))] * block.shape[1]
+            layout.append((name, block.shape[1]))
+        return np.hstack(columns), np.asarray(weights), layout
+
+    def split(self, stacked: np.ndarray, layout: list[tuple[str, int]]) -> dict[str, np.ndarray]:
+        out, start = {}, 0
+        for name, width in layout:
+            block = stacked[:, start : start + width]
+            source = self.values[name]
+            out[name] = block.astype(source.dtype) if source.dtype.kind in "iu" else block
+            start += width
+        return out
+
+
+#: A codec for the search: ``codec(vertices, faces, attributes, bits, origin, grid_size)``
+#: returns an object with ``size_bits`` and the decoded ``vertices`` and ``faces``.
+Codec = Callable[..., Any]
 
 
 @dataclass(frozen=True)
@@ -374,6 +422,12 @@ class Search:
         Judge an error budget by a certified upper bound.
     tolerance : float or None
         Refinement tolerance of that bound (length).
+    attributes : Attributes, optional
+        Vertex attributes to simplify with (meshoptimizer only: they keep their seams)
+        and to encode.
+    codec : callable, optional
+        What encodes a candidate (see :data:`Codec`); default :func:`meshbits.encode`
+        in ``format``.
     """
 
     def __init__(
@@ -395,8 +449,12 @@ class Search:
         samples: int,
         certify: bool = False,
         tolerance: float | None = None,
+        attributes: Attributes | None = None,
+        codec: Codec | None = None,
     ) -> None:
         self.original = original
+        self.attributes = attributes
+        self.codec = codec
         self.reference = reference
         self.constraint = constraint
         self.budget = float(budget)
@@ -420,7 +478,11 @@ class Search:
         self.plan = self._first_plan()
         #: Quick estimate of each simplifier tried by ``"auto"`` (length).
         self.simplifier_estimates: dict[str, float] = {}
-        self._add(Level("original", *original))
+        self._add(
+            Level(
+                "original", *original, attributes=None if attributes is None else attributes.values
+            )
+        )
         self.lods = lods is not None
         #: Tessellation error below which a simplifier's levels stopped improving.
         self.floor: dict[str, float] = {}
@@ -513,6 +575,9 @@ class Search:
         by the quick estimate; None for a caller's simplifier."""
         if self.simplifier is not None or self.method is None:
             return None
+        if self.attributes is not None:
+            # fast-simplification carries no attributes.
+            self.method = "meshopt"
         if self.method != "auto":
             return self.method
         planned = self.plan.whole_vertices if self.plan is not None else 1000.0
@@ -561,7 +626,9 @@ class Search:
         else:
             target = {"error": tau} if tau is not None else {"vertices": vertices}
             locks_at = aim if method == "meshopt" else None
-            result, locked = _simplify_locking(self.original, method, target, locks_at, self.strays)
+            result, locked, attributes = _simplify_locking(
+                self.original, method, target, locks_at, self.strays, self.attributes
+            )
             level = Level(
                 "meshopt" if tau is not None else "vertices",
                 result.vertices,
@@ -570,6 +637,7 @@ class Search:
                 target_vertices=vertices,
                 simplifier_error=result.error,
                 locked=locked,
+                attributes=attributes,
             )
         level.method = method
         self.seconds["simplify"] += time.perf_counter() - begin
@@ -637,13 +705,23 @@ class Search:
         level = self.levels[index]
         if bits not in level.encodings:
             begin = time.perf_counter()
-            level.encodings[bits] = encode(
-                (level.vertices, level.faces),
-                bits,
-                format=self.format,
-                origin=level.origin,
-                grid_size=level.grid_size,
-            )
+            if self.codec is not None:
+                level.encodings[bits] = self.codec(
+                    level.vertices,
+                    level.faces,
+                    level.attributes,
+                    bits,
+                    level.origin,
+                    level.grid_size,
+                )
+            else:
+                level.encodings[bits] = encode(
+                    (level.vertices, level.faces),
+                    bits,
+                    format=self.format,
+                    origin=level.origin,
+                    grid_size=level.grid_size,
+                )
             self.seconds["encode"] += time.perf_counter() - begin
         return level.encodings[bits]
 
@@ -968,22 +1046,36 @@ def _simplify_locking(
     target: dict[str, Any],
     aim: float | None,
     known_strays: np.ndarray,
-) -> tuple[Any, int]:
+    attributes: Attributes | None = None,
+) -> tuple[Any, int, dict[str, np.ndarray] | None]:
     """Simplify ``source``; for meshopt with an ``aim``, lock the source vertices the
     result leaves farther than ``aim`` and simplify again (:data:`LOCK_ROUNDS` times at
     most, while they are at most :data:`LOCK_MAX_FRACTION` of the result).
     ``known_strays`` (one flag per source vertex) starts locked, and gains every vertex
-    locked here: a vertex left far from one level tends to be from the next. Returns the
-    result and how many vertices were locked."""
-    options = {"update_positions": True} if method == "meshopt" else {}
+    locked here: a vertex left far from one level tends to be from the next. With
+    ``attributes``, they are simplified with the positions (their seams kept). Returns
+    the result, how many vertices were locked, and the result's attributes by name."""
+    options: dict[str, Any] = {"update_positions": True} if method == "meshopt" else {}
+    layout: list[tuple[str, int]] = []
+    if attributes is not None:
+        stacked, weights, layout = attributes.stacked()
+        options = {
+            "attributes": stacked,
+            "attribute_weights": weights,
+            "update_positions": attributes.interpolate,
+        }
     use_locks = method == "meshopt" and aim is not None and aim > 0
     locked = known_strays.copy() if use_locks else np.zeros(len(source[0]), dtype=bool)
     if locked.any():
         result = simplify(source, method=method, locked=locked, **target, **options)
     else:
         result = simplify(source, method=method, **target, **options)
+
+    def named(result: Any) -> dict[str, np.ndarray] | None:
+        return None if attributes is None else attributes.split(result.attributes, layout)
+
     if not use_locks:
-        return result, 0
+        return result, 0, named(result)
     used = np.unique(source[1])
     for _ in range(LOCK_ROUNDS):
         distances = ClosestPoints(result.mesh).query(source[0][used]).distances
@@ -993,7 +1085,7 @@ def _simplify_locking(
         locked[strays] = True
         result = simplify(source, method=method, locked=locked, **target, **options)
     known_strays |= locked
-    return result, int(locked.sum())
+    return result, int(locked.sum()), named(result)
 
 
 def _stepped(

@@ -1,0 +1,565 @@
+"""glTF 2.0 documents in and out: accessors read into numpy, the scene graph walked into
+world-space instances, and a document rebuilt with some primitives replaced by compressed
+ones and everything else copied as it was.
+
+pygltflib holds the document (JSON as a dict); numpy reads accessors: any component type,
+``byteStride``, normalized integers, sparse accessors, and primitives already compressed
+with ``KHR_draco_mesh_compression`` (decoded with DracoPy). OBJ (with MTL and textures),
+PLY (with colours) and the other formats trimesh reads come in through trimesh's own glTF
+export, so UV seams stay split and textures keep their bytes.
+"""
+
+from __future__ import annotations
+
+import base64
+import io as _io
+import json
+import math
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import MeshbitsError, MeshFileError
+
+__all__ = [
+    "COMPONENT_DTYPES",
+    "Document",
+    "PrimitiveData",
+    "image_size",
+    "load_document",
+]
+
+#: numpy dtype of each glTF component type.
+COMPONENT_DTYPES = {
+    5120: np.dtype(np.int8),
+    5121: np.dtype(np.uint8),
+    5122: np.dtype(np.int16),
+    5123: np.dtype(np.uint16),
+    5125: np.dtype(np.uint32),
+    5126: np.dtype(np.float32),
+}
+COMPONENT_TYPES = {dtype: code for code, dtype in COMPONENT_DTYPES.items()}
+
+#: Components of each accessor type.
+TYPE_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+WIDTH_TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
+
+#: Primitive modes (glTF 2.0 `mesh.primitive.mode`).
+TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN = 4, 5, 6
+
+GLB_MAGIC = b"glTF"
+
+
+def _normalized(values: np.ndarray) -> np.ndarray:
+    """Normalized integers as the glTF spec maps them to floats."""
+    kind = values.dtype
+    if kind == np.uint8:
+        return values / 255.0
+    if kind == np.uint16:
+        return values / 65535.0
+    if kind == np.int8:
+        return np.maximum(values / 127.0, -1.0)
+    if kind == np.int16:
+        return np.maximum(values / 32767.0, -1.0)
+    return values.astype(np.float64)
+
+
+@dataclass
+class PrimitiveData:
+    """A triangle primitive read from a document.
+
+    Attributes
+    ----------
+    mesh, index : int
+        Its mesh and its place among the mesh's primitives.
+    positions : ndarray, shape (n, 3), float64
+        ``POSITION`` (the mesh's local units).
+    faces : ndarray, shape (m, 3), int64
+        Triangles (strips and fans converted).
+    attributes : dict
+        Every other vertex attribute by its glTF name, as floats (normalized integers
+        mapped to [0, 1] or [-1, 1]), or as integers for ``JOINTS_n``.
+    source_types : dict
+        ``name -> (componentType, normalized)`` of the input accessors.
+    material : int or None
+    morph : bool
+        It has morph targets (kept as they are: not simplified nor quantized).
+    """
+
+    mesh: int
+    index: int
+    positions: np.ndarray = field(repr=False)
+    faces: np.ndarray = field(repr=False)
+    attributes: dict[str, np.ndarray] = field(repr=False)
+    source_types: dict[str, tuple[int, bool]] = field(repr=False)
+    material: int | None
+    morph: bool
+
+    @property
+    def skinned(self) -> bool:
+        return any(name.startswith("JOINTS_") for name in self.attributes)
+
+
+class Document:
+    """A glTF 2.0 document (``json``, a dict) with its buffers in memory.
+
+    Parameters
+    ----------
+    data : dict
+        The glTF JSON.
+    buffers : list of bytes
+        Each buffer's bytes.
+    base : Path or None
+        Folder of the file, for images referenced by relative URIs.
+    """
+
+    def __init__(self, data: dict[str, Any], buffers: list[bytes], base: Path | None) -> None:
+        self.json = data
+        self.buffers = buffers
+        self.base = base
+        asset = data.get("asset", {})
+        if not str(asset.get("version", "")).startswith("2."):
+            raise MeshFileError(f"not a glTF 2.0 document (asset.version {asset.get('version')!r})")
+
+    # --- raw data -----------------------------------------------------------------------
+
+    def view_bytes(self, index: int) -> memoryview:
+        """The bytes of a bufferView."""
+        view = self._item("bufferViews", index)
+        buffer = view.get("buffer", 0)
+        if not 0 <= buffer < len(self.buffers):
+            raise MeshFileError(f"bufferView {index} refers to missing buffer {buffer}")
+        start = int(view.get("byteOffset", 0))
+        end = start + int(view["byteLength"])
+        data = self.buffers[buffer]
+        if end > len(data):
+            raise MeshFileError(
+                f"bufferView {index} ends at byte {end}, past its buffer's {len(data)}"
+            )
+        return memoryview(data)[start:end]
+
+    def _item(self, kind: str, index: int) -> dict[str, Any]:
+        items = self.json.get(kind, [])
+        if not isinstance(index, int) or not 0 <= index < len(items):
+            raise MeshFileError(f"{kind}[{index}] does not exist ({len(items)} {kind})")
+        return items[index]
+
+    def accessor(self, index: int, *, normalize: bool = True) -> np.ndarray:
+        """An accessor's values, ``(count, components)``: floats for float and
+        normalized accessors (when ``normalize``), else the stored integers."""
+        acc = self._item("accessors", index)
+        dtype = COMPONENT_DTYPES.get(acc.get("componentType"))
+        width = TYPE_WIDTHS.get(acc.get("type"))
+        if dtype is None or width is None:
+            raise MeshFileError(
+                f"accessor {index}: unknown componentType {acc.get('componentType')} or "
+                f"type {acc.get('type')}"
+            )
+        count = int(acc.get("count", 0))
+        if count < 0:
+            raise MeshFileError(f"accessor {index}: negative count {count}")
+        if "bufferView" in acc and acc["bufferView"] is not None:
+            values = self._strided(
+                acc["bufferView"], int(acc.get("byteOffset", 0)), dtype, width, count, index
+            )
+        else:
+            values = np.zeros((count, width), dtype=dtype)
+        sparse = acc.get("sparse")
+        if sparse:
+            values = values.copy()
+            n = int(sparse["count"])
+            idx_dtype = COMPONENT_DTYPES[sparse["indices"]["componentType"]]
+            ids = np.frombuffer(
+                self.view_bytes(sparse["indices"]["bufferView"]),
+                dtype=idx_dtype,
+                count=n,
+                offset=int(sparse["indices"].get("byteOffset", 0)),
+            ).astype(np.int64)
+            replacement = np.frombuffer(
+                self.view_bytes(sparse["values"]["bufferView"]),
+                dtype=dtype,
+                count=n * width,
+                offset=int(sparse["values"].get("byteOffset", 0)),
+            ).reshape(n, width)
+            if n and (ids.min() < 0 or ids.max() >= count):
+                raise MeshFileError(f"accessor {index}: sparse index out of range")
+            values[ids] = replacement
+        if normalize and (acc.get("normalized") or dtype == np.float32):
+            return _normalized(values) if acc.get("normalized") else values.astype(np.float64)
+        return values
+
+    def _strided(
+        self, view_index: int, offset: int, dtype: np.dtype, width: int, count: int, index: int
+    ) -> np.ndarray:
+        data = self.view_bytes(view_index)
+        view = self._item("bufferViews", view_index)
+        element = dtype.itemsize * width
+        stride = int(view.get("byteStride") or element)
+        needed = offset + (count - 1) * stride + element if count else 0
+        if needed > len(data):
+            raise MeshFileError(
+                f"accessor {index} needs {needed} bytes of bufferView {view_index}, which "
+                f"has {len(data)}"
+            )
+        if count == 0:
+            return np.zeros((0, width), dtype=dtype)
+        raw = np.frombuffer(data, dtype=np.uint8, count=needed - offset, offset=offset)
+        rows = np.lib.stride_tricks.as_strided(
+            raw, shape=(count, element), strides=(stride, 1), writeable=False
+        )
+        return np.ascontiguousarray(rows).view(dtype).reshape(count, width)
+
+    def image_bytes(self, index: int) -> tuple[bytes, str | None]:
+        """An image's bytes, exactly as stored, and its MIME type."""
+        image = self._item("images", index)
+        mime = image.get("mimeType")
+        if image.get("bufferView") is not None:
+            return bytes(self.view_bytes(image["bufferView"])), mime
+        uri = image.get("uri")
+        if uri is None:
+            raise MeshFileError(f"image {index} has neither a bufferView nor a uri")
+        if uri.startswith("data:"):
+            header, _, payload = uri.partition(",")
+            mime = mime or header[5:].split(";")[0] or None
+            return base64.b64decode(payload), mime
+        if self.base is None:
+            raise MeshFileError(f"image {index} refers to {uri!r}, but the document has no folder")
+        path = self.base / _unquote(uri)
+        if not path.is_file():
+            raise MeshFileError(f"image {index}: no such file {path}")
+        return path.read_bytes(), mime or _mime_of(path.name)
+
+    # --- meshes -------------------------------------------------------------------------
+
+    def primitive(self, mesh: int, index: int) -> PrimitiveData | None:
+        """A triangle primitive's data; None for points and lines."""
+        prim = self._item("meshes", mesh).get("primitives", [])[index]
+        mode = prim.get("mode", TRIANGLES)
+        if mode not in (TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN):
+            return None
+        draco = (prim.get("extensions") or {}).get("KHR_draco_mesh_compression")
+        if draco is not None:
+            attributes, indices, types = self._draco(prim, draco)
+        else:
+            attributes, types = {}, {}
+            for name, acc in prim.get("attributes", {}).items():
+                attributes[name] = self.accessor(acc, normalize=not name.startswith("JOINTS_"))
+                spec = self._item("accessors", acc)
+                types[name] = (int(spec["componentType"]), bool(spec.get("normalized", False)))
+            if "POSITION" not in attributes:
+                raise MeshFileError(f"meshes[{mesh}].primitives[{index}] has no POSITION")
+            n = len(attributes["POSITION"])
+            if prim.get("indices") is not None:
+                indices = self.accessor(prim["indices"], normalize=False).reshape(-1)
+            else:
+                indices = np.arange(n)
+        positions = attributes.pop("POSITION")
+        faces = _triangles(indices.astype(np.int64), mode)
+        if len(faces) and (faces.min() < 0 or faces.max() >= len(positions)):
+            raise MeshFileError(f"meshes[{mesh}].primitives[{index}]: an index is out of range")
+        types.pop("POSITION", None)
+        return PrimitiveData(
+            mesh=mesh,
+            index=index,
+            positions=positions.astype(np.float64),
+            faces=faces,
+            attributes=attributes,
+            source_types=types,
+            material=prim.get("material"),
+            morph=bool(prim.get("targets")),
+        )
+
+    def _draco(
+        self, prim: dict[str, Any], draco: dict[str, Any]
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, dict[str, tuple[int, bool]]]:
+        import DracoPy
+
+        try:
+            mesh = DracoPy.decode(bytes(self.view_bytes(draco["bufferView"])))
+        except Exception as err:
+            raise MeshFileError(f"cannot decode a Draco primitive: {err}") from err
+        by_id = {a["unique_id"]: a for a in mesh.attributes}
+        attributes, types = {}, {}
+        for name, unique_id in draco.get("attributes", {}).items():
+            if unique_id not in by_id:
+                raise MeshFileError(f"Draco primitive has no attribute {unique_id} for {name}")
+            data = np.asarray(by_id[unique_id]["data"])
+            spec = self._item("accessors", prim["attributes"][name])
+            normalized = bool(spec.get("normalized", False))
+            if normalized and data.dtype.kind in "ui":
+                dtype = COMPONENT_DTYPES[spec["componentType"]]
+                data = _normalized(data.astype(dtype))
+            attributes[name] = data if name.startswith("JOINTS_") else data.astype(np.float64)
+            types[name] = (int(spec["componentType"]), normalized)
+        indices = np.asarray(mesh.faces, dtype=np.int64).reshape(-1)
+        return attributes, indices, types
+
+    def triangle_primitives(self) -> list[PrimitiveData]:
+        """Every triangle primitive of every mesh."""
+        out = []
+        for m, mesh in enumerate(self.json.get("meshes", [])):
+            for p in range(len(mesh.get("primitives", []))):
+                data = self.primitive(m, p)
+                if data is not None:
+                    out.append(data)
+        return out
+
+    # --- the scene graph ----------------------------------------------------------------
+
+    def node_matrix(self, index: int) -> np.ndarray:
+        """A node's local transform, 4x4."""
+        node = self._item("nodes", index)
+        if "matrix" in node:
+            return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
+        t = np.asarray(node.get("translation", [0, 0, 0]), dtype=np.float64)
+        x, y, z, w = node.get("rotation", [0, 0, 0, 1])
+        r = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        s = np.asarray(node.get("scale", [1, 1, 1]), dtype=np.float64)
+        out = np.eye(4)
+        out[:3, :3] = r * s
+        out[:3, 3] = t
+        return out
+
+    def mesh_instances(self) -> dict[int, list[tuple[int, np.ndarray]]]:
+        """Each mesh's instances: ``(node, world matrix)`` over every scene's node trees
+        (a mesh in no scene gets the identity)."""
+        out: dict[int, list[tuple[int, np.ndarray]]] = {}
+        nodes = self.json.get("nodes", [])
+        roots = [n for scene in self.json.get("scenes", []) for n in scene.get("nodes", [])]
+        if not roots:
+            children = {c for node in nodes for c in node.get("children", [])}
+            roots = [i for i in range(len(nodes)) if i not in children]
+        stack = [(r, np.eye(4), 0) for r in roots]
+        seen_depth = 0
+        while stack:
+            index, parent, depth = stack.pop()
+            if depth > len(nodes):
+                raise MeshFileError("the node hierarchy has a cycle")
+            seen_depth = max(seen_depth, depth)
+            world = parent @ self.node_matrix(index)
+            node = self._item("nodes", index)
+            if node.get("mesh") is not None:
+                out.setdefault(int(node["mesh"]), []).append((index, world))
+            stack.extend((c, world, depth + 1) for c in node.get("children", []))
+        for m in range(len(self.json.get("meshes", []))):
+            out.setdefault(m, [(-1, np.eye(4))])
+        return out
+
+    def animated_nodes(self) -> set[int]:
+        """Nodes whose translation, rotation or scale an animation drives."""
+        return {
+            channel["target"]["node"]
+            for animation in self.json.get("animations", [])
+            for channel in animation.get("channels", [])
+            if channel.get("target", {}).get("node") is not None
+            and channel["target"].get("path") in ("translation", "rotation", "scale")
+        }
+
+
+def largest_scale(matrix: np.ndarray) -> float:
+    """The largest singular value of a transform's linear part: how much it can stretch a
+    length."""
+    return float(np.linalg.svd(matrix[:3, :3], compute_uv=False).max())
+
+
+def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
+    if mode == TRIANGLES:
+        if len(indices) % 3:
+            raise MeshFileError(f"a triangle list has {len(indices)} indices, not a multiple of 3")
+        return indices.reshape(-1, 3)
+    if len(indices) < 3:
+        return np.zeros((0, 3), dtype=np.int64)
+    if mode == TRIANGLE_STRIP:
+        i = np.arange(len(indices) - 2)
+        tri = np.stack([indices[i], indices[i + 1], indices[i + 2]], axis=1)
+        odd = i % 2 == 1
+        tri[odd] = tri[odd][:, [1, 0, 2]]
+        return tri
+    i = np.arange(1, len(indices) - 1)
+    return np.stack([np.full(len(i), indices[0]), indices[i], indices[i + 1]], axis=1)
+
+
+def _unquote(uri: str) -> str:
+    from urllib.parse import unquote
+
+    return unquote(uri)
+
+
+def _mime_of(name: str) -> str | None:
+    suffix = name.rsplit(".", 1)[-1].lower()
+    return {
+        "png": "image/png",
+        "jpg": "image/jpeg",
+        "jpeg": "image/jpeg",
+        "webp": "image/webp",
+        "ktx2": "image/ktx2",
+    }.get(suffix)
+
+
+def image_size(data: bytes) -> tuple[int, int] | None:
+    """``(width, height)`` of a PNG, JPEG or WebP image from its header; None if unknown."""
+    if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:
+        width, height = struct.unpack(">II", data[16:24])
+        return int(width), int(height)
+    if data[:2] == b"\xff\xd8":
+        i = 2
+        while i + 9 < len(data):
+            if data[i] != 0xFF:
+                return None
+            marker = data[i + 1]
+            length = struct.unpack(">H", data[i + 2 : i + 4])[0]
+            if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+                height, width = struct.unpack(">HH", data[i + 5 : i + 9])
+                return int(width), int(height)
+            i += 2 + length
+        return None
+    if data[:4] == b"RIFF" and data[8:12] == b"WEBP" and len(data) >= 30:
+        chunk = data[12:16]
+        if chunk == b"VP8 ":
+            width, height = struct.unpack("<HH", data[26:30])
+            return int(width & 0x3FFF), int(height & 0x3FFF)
+        if chunk == b"VP8L":
+            b = data[21:25]
+            width = 1 + (((b[1] & 0x3F) << 8) | b[0])
+            height = 1 + (((b[3] & 0xF) << 10) | (b[2] << 2) | ((b[1] & 0xC0) >> 6))
+            return int(width), int(height)
+        if chunk == b"VP8X":
+            width = 1 + int.from_bytes(data[24:27], "little")
+            height = 1 + int.from_bytes(data[27:30], "little")
+            return width, height
+    return None
+
+
+def load_document(path: str | Path) -> Document:
+    """Read a scene file into a glTF document.
+
+    ``.glb`` and ``.gltf`` (with its buffers and images) are read as they are; OBJ (with
+    its MTL and textures), PLY (with colours), STL, OFF and the rest of what trimesh
+    reads, gzip-compressed too, go through trimesh's glTF export.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``path`` does not exist.
+    MeshFileError
+        The file cannot be read as a scene.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".glb":
+            return _from_glb(path.read_bytes(), path.parent)
+        if suffix == ".gltf":
+            return _from_gltf(json.loads(path.read_text(encoding="utf-8")), path.parent)
+        return _from_trimesh(path)
+    except (MeshbitsError, FileNotFoundError):
+        raise
+    except Exception as err:
+        reason = " ".join(str(err).split()) or type(err).__name__
+        raise MeshFileError(f"cannot read {path} as a scene: {reason}") from err
+
+
+def _from_glb(data: bytes, base: Path | None) -> Document:
+    if data[:4] != GLB_MAGIC or len(data) < 20:
+        raise MeshFileError("not a GLB file (no glTF header)")
+    version, length = struct.unpack("<II", data[4:12])
+    if version != 2:
+        raise MeshFileError(f"GLB version {version}, not 2")
+    if length > len(data):
+        raise MeshFileError(f"the GLB header says {length} bytes, the file has {len(data)}")
+    offset, document, binary = 12, None, b""
+    while offset + 8 <= length:
+        chunk_length, kind = struct.unpack("<II", data[offset : offset + 8])
+        chunk = data[offset + 8 : offset + 8 + chunk_length]
+        if len(chunk) < chunk_length:
+            raise MeshFileError("a GLB chunk runs past the end of the file")
+        if kind == 0x4E4F534A:
+            document = json.loads(chunk.decode("utf-8"))
+        elif kind == 0x004E4942 and not binary:
+            binary = bytes(chunk)
+        offset += 8 + chunk_length
+    if document is None:
+        raise MeshFileError("the GLB file has no JSON chunk")
+    return _from_gltf(document, base, binary)
+
+
+def _from_gltf(document: dict[str, Any], base: Path | None, binary: bytes = b"") -> Document:
+    if not isinstance(document, dict):
+        raise MeshFileError("the glTF JSON is not an object")
+    buffers = []
+    for i, buffer in enumerate(document.get("buffers", [])):
+        uri = buffer.get("uri")
+        if uri is None:
+            if i != 0:
+                # A fallback buffer of EXT_meshopt_compression: no data.
+                buffers.append(b"")
+                continue
+            data = binary
+        elif uri.startswith("data:"):
+            data = base64.b64decode(uri.partition(",")[2])
+        else:
+            if base is None:
+                raise MeshFileError(f"buffer {i} refers to {uri!r}, but the document has no folder")
+            file = base / _unquote(uri)
+            if not file.is_file():
+                raise MeshFileError(f"buffer {i}: no such file {file}")
+            data = file.read_bytes()
+        if len(data) < int(buffer.get("byteLength", 0)):
+            raise MeshFileError(
+                f"buffer {i} should hold {buffer.get('byteLength')} bytes, has {len(data)}"
+            )
+        buffers.append(data)
+    used = set(document.get("extensionsRequired", []))
+    if "EXT_meshopt_compression" in used or "KHR_meshopt_compression" in used:
+        raise MeshFileError(
+            "the document is compressed with EXT_meshopt_compression: decompress it first "
+            "(gltfpack -i in.glb -o out.glb -noq)"
+        )
+    return Document(document, buffers, base)
+
+
+def _from_trimesh(path: Path) -> Document:
+    import gzip
+
+    import trimesh
+
+    suffixes = [s.lower() for s in path.suffixes]
+    if suffixes and suffixes[-1] == ".gz":
+        with gzip.open(path, "rb") as handle:
+            loaded = trimesh.load(
+                _io.BytesIO(handle.read()), file_type=suffixes[-2].lstrip("."), process=False
+            )
+    else:
+        loaded = trimesh.load(path, process=False)
+    scene = loaded if isinstance(loaded, trimesh.Scene) else trimesh.Scene(loaded)
+    if not any(isinstance(g, trimesh.Trimesh) and len(g.faces) for g in scene.geometry.values()):
+        raise MeshFileError(f"{path} holds no triangles")
+    glb = scene.export(file_type="glb")
+    return _from_glb(glb, path.parent)
+
+
+def merged_bounds(points: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding box of several point sets."""
+    lo = np.min([p.min(axis=0) for p in points if len(p)], axis=0)
+    hi = np.max([p.max(axis=0) for p in points if len(p)], axis=0)
+    return lo, hi
+
+
+def finite_or_fail(name: str, values: np.ndarray) -> None:
+    if values.size and not np.isfinite(values).all():
+        raise MeshFileError(f"{name} holds NaN or infinite values")
+
+
+def rounded_bits(value: float, low: int, high: int) -> int:
+    return int(min(max(math.ceil(value), low), high))
