@@ -755,6 +755,21 @@ fn meshopt_encode_triangles<'py>(
     Ok(PyBytes::new(py, &encoded))
 }
 
+/// Triangles reordered for meshoptimizer's codecs: `(new triangles, old vertex of each new
+/// vertex)`.
+#[pyfunction]
+fn meshopt_reorder<'py>(
+    py: Python<'py>,
+    faces: PyReadonlyArray2<'py, u32>,
+    vertex_count: usize,
+) -> PyResult<(Bound<'py, PyArray2<u32>>, Bound<'py, PyAny>)> {
+    let f = triples(&faces, "faces")?;
+    let (triangles, old) = run_detached(py, || {
+        codec::reorder_for_codecs(f.as_flattened(), vertex_count)
+    })?;
+    Ok((rows(py, triangles)?, old.into_pyarray(py).into_any()))
+}
+
 /// Unit vectors `(n, 4)` as octahedral signed normalized integers: `(n, 4)` bytes
 /// (`bits <= 8`) or `(n, 8)` (two bytes a component, little-endian).
 #[pyfunction]
@@ -856,6 +871,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(meshopt_encode_vertices, m)?)?;
     m.add_function(wrap_pyfunction!(meshopt_encode_triangles, m)?)?;
     m.add_function(wrap_pyfunction!(meshopt_encode_octahedral, m)?)?;
+    m.add_function(wrap_pyfunction!(meshopt_reorder, m)?)?;
     m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(get_num_threads, m)?)?;
     Ok(())

@@ -153,6 +153,18 @@ def test_two_gltf_outputs_in_one_folder_keep_their_own_buffers(tmp_path, capsys)
     assert counts == expected
 
 
+def test_write_atomic_gives_new_files_the_usual_mode_and_keeps_an_old_files(tmp_path):
+    fresh = write_atomic(tmp_path / "new.drc", b"data")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert fresh.stat().st_mode & 0o777 == 0o666 & ~umask
+    old = tmp_path / "old.drc"
+    old.write_bytes(b"x")
+    old.chmod(0o640)
+    write_atomic(old, b"new data")
+    assert old.stat().st_mode & 0o777 == 0o640 and old.read_bytes() == b"new data"
+
+
 def test_write_atomic_keeps_the_old_file_when_the_write_fails(tmp_path, monkeypatch):
     target = tmp_path / "out.drc"
     target.write_bytes(b"the earlier result")

@@ -22,6 +22,7 @@ __all__ = [
     "meshopt_encode_octahedral",
     "meshopt_encode_triangles",
     "meshopt_encode_vertices",
+    "meshopt_reorder",
     "quantize",
     "sample_mesh",
     "set_num_threads",
@@ -103,6 +104,9 @@ def meshopt_encode_triangles(faces: npt.NDArray[np.uint32], vertex_count: int) -
 def meshopt_encode_octahedral(
     vectors: npt.NDArray[np.float32], bits: int
 ) -> npt.NDArray[np.uint8]: ...
+def meshopt_reorder(
+    faces: npt.NDArray[np.uint32], vertex_count: int
+) -> tuple[npt.NDArray[np.uint32], npt.NDArray[np.uint32]]: ...
 def weld(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32]
 ) -> tuple[npt.NDArray[np.uint32], int]: ...

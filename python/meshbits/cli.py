@@ -206,7 +206,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     args.lods, args.alpha, args.connectivity_bits = None, None, None
     args.max_iterations, args.samples, args.seed = 6, None, 0
     args.estimator, args.quiet, args.certify = "circumsphere", args.json, False
-    args.method = "auto"
+    args.method, args.codec, args.normal_tolerance = "auto", "draco", 1.0
     if not args.json:
         print(
             f"meshbits demo: compressing {args.mesh.name} (Spot by Keenan Crane, public "
@@ -216,8 +216,9 @@ def _run_demo(args: argparse.Namespace) -> int:
     return _run_compress(args)
 
 
-_FORMATS = {".drc": "draco", ".glb": "glb", ".ply": "ply"}
-_TRIMESH_FORMATS = (".gltf", ".obj", ".off", ".stl")
+_FORMATS = {".drc": "draco", ".ply": "ply"}
+_SCENE_FORMATS = (".glb", ".gltf")
+_TRIMESH_FORMATS = (".obj", ".off", ".stl")
 
 
 def _add_compress(sub: argparse._SubParsersAction) -> None:
@@ -250,9 +251,24 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
         "-o",
         "--output",
         type=Path,
-        help="output file: .drc (Draco), .glb (glTF, quantized positions), .ply (quantized "
-        "PLY); .gltf/.obj/.off/.stl through trimesh (not with --size: their size is not what "
+        help="output file: .glb or .gltf (the whole scene, every attribute, material and "
+        "node kept, compressed with --codec), .drc (Draco, one merged mesh), .ply (quantized "
+        "PLY); .obj/.off/.stl through trimesh (not with --size: their size is not what "
         "the loop measures). Without it nothing is written.",
+    )
+    p.add_argument(
+        "--codec",
+        choices=("draco", "meshopt"),
+        default="draco",
+        help="for .glb/.gltf: KHR_draco_mesh_compression (default) or EXT_meshopt_compression "
+        "with KHR_mesh_quantization",
+    )
+    p.add_argument(
+        "--normal-tolerance",
+        type=_positive_number,
+        default=1.0,
+        help="for .glb/.gltf: largest angle in degrees between a normal and its quantized "
+        "value (default 1)",
     )
     p.add_argument(
         "--lods", type=Path, nargs="+", help="levels of detail to pick from, instead of simplifying"
@@ -313,13 +329,17 @@ def _run_compress(args: argparse.Namespace) -> int:
     _check_size_model(args)
     output = args.output
     suffix = output.suffix.lower() if output else ".drc"
+    if suffix in _SCENE_FORMATS:
+        return _run_compress_scene(args)
+    if args.codec != "draco":
+        raise UserError("--codec applies to .glb and .gltf outputs")
     if suffix not in _FORMATS and suffix not in _TRIMESH_FORMATS:
         raise UserError(
-            f"cannot write {output}: use .drc, .glb, .ply, " + ", ".join(_TRIMESH_FORMATS)
+            f"cannot write {output}: use .glb, .gltf, .drc, .ply, " + ", ".join(_TRIMESH_FORMATS)
         )
     if suffix in _TRIMESH_FORMATS and args.size is not None:
         raise UserError(
-            f"--size needs a .drc, .glb or .ply output; {suffix} sizes are not measured"
+            f"--size needs a .glb, .gltf, .drc or .ply output; {suffix} sizes are not measured"
         )
     _output(output)
     for path in [args.mesh, *(args.lods or [])]:
@@ -407,6 +427,128 @@ def _run_compress(args: argparse.Namespace) -> int:
         )
         print(result.message)
     return EXIT_OK if result.met else EXIT_UNMET
+
+
+def _run_compress_scene(args: argparse.Namespace) -> int:
+    """compress to .glb / .gltf: the whole scene, primitive by primitive."""
+    from .scene import compress_scene
+
+    if args.vertices is not None:
+        raise UserError("a scene takes --error or --size, not --vertices")
+    if args.lods:
+        raise UserError("--lods applies to single meshes (.drc and .ply outputs)")
+    _output(args.output)
+    _input(args.mesh)
+
+    def report(line: str) -> None:
+        if not args.quiet:
+            print(f"  {line}", file=sys.stderr)
+
+    result = compress_scene(
+        args.mesh,
+        error=args.error,
+        size=None if args.size is None else parse_size(args.size),
+        relative=args.relative,
+        codec=args.codec,
+        normal_tolerance=args.normal_tolerance,
+        output=args.output,
+        seed=args.seed,
+        progress=report,
+    )
+    payload = {
+        "input": str(args.mesh),
+        "output": str(args.output),
+        "budget_text": _budget_text(args),
+        **result.to_dict(),
+    }
+    if args.json:
+        _print_json(payload)
+        return EXIT_OK if result.met else EXIT_UNMET
+    print(
+        f"{args.mesh} -> {args.output} ({result.codec}): {result.input_bytes} -> "
+        f"{result.size_bytes} bytes; budget {_budget_text(args)}"
+    )
+    header = (
+        "mesh",
+        "prim",
+        "name",
+        "inst",
+        "scale",
+        "B",
+        "normal",
+        "uv",
+        "V in",
+        "V out",
+        "bytes",
+        "error (world)",
+        "met",
+    )
+    rows = [
+        (
+            str(p.mesh),
+            str(p.primitive),
+            str(p.name or "-"),
+            str(p.instances),
+            f"{p.scale:.3g}",
+            str(p.bits) if p.kept is None else "kept",
+            str(p.normal_bits or "-"),
+            str(p.uv_bits or "-"),
+            str(p.input_vertices),
+            str(p.vertices),
+            str(p.bytes),
+            f"{p.world_error:.4g}",
+            "yes" if p.met else "no",
+        )
+        for p in result.primitives
+    ]
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    for row in [header, *rows]:
+        print("  " + "  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)))
+    print(result.message)
+    return EXIT_OK if result.met else EXIT_UNMET
+
+
+def _add_info(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "info",
+        help="what a scene or mesh file holds: meshes, primitives, attributes, materials, "
+        "images, extensions, bytes by part",
+    )
+    p.add_argument("file", type=Path, help="glTF (.glb/.gltf), OBJ, PLY, STL, ...")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=_run_info)
+
+
+def _run_info(args: argparse.Namespace) -> int:
+    from .scene import scene_info
+
+    info = scene_info(_input(args.file))
+    if args.json:
+        _print_json(info)
+        return EXIT_OK
+    print(f"{info['file']}: {info['bytes']} bytes")
+    print(
+        f"  {len(info['meshes'])} meshes, {info['nodes']} nodes, {info['scenes']} scenes, "
+        f"{info['materials']} materials, {info['textures']} textures, {len(info['images'])} "
+        f"images, {info['skins']} skins, {info['animations']} animations, {info['cameras']} "
+        "cameras"
+    )
+    if info["extensions_used"]:
+        print(f"  extensions: {', '.join(info['extensions_used'])}")
+    parts = ", ".join(f"{k} {v}" for k, v in info["bytes_by_part"].items())
+    print(f"  bytes by part: {parts}, JSON about {info['json_bytes']}")
+    for mesh in info["meshes"]:
+        for prim in mesh["primitives"]:
+            attributes = ", ".join(f"{k} ({v})" for k, v in prim["attributes"].items())
+            extras = f"; {', '.join(prim['extensions'])}" if prim["extensions"] else ""
+            print(
+                f"  mesh {mesh['mesh']} {mesh['name'] or ''} primitive {prim['primitive']}: "
+                f"{prim['vertices']} vertices, {prim['faces']} faces; {attributes}{extras}"
+            )
+    for image in info["images"]:
+        size = "x".join(map(str, image["size"])) if image["size"] else "?"
+        print(f"  image {image['image']}: {image['mimeType']}, {size}, {image['bytes']} bytes")
+    return EXIT_OK
 
 
 def _budget_in_units(result: Any) -> str:
@@ -904,6 +1046,7 @@ def _run_plot(args: argparse.Namespace) -> int:
 
 _COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_k,
+    _add_info,
     _add_demo,
     _add_plan,
     _add_compress,

@@ -97,6 +97,13 @@ def check_writable(path: str | Path) -> Path:
     return path
 
 
+def _default_mode() -> int:
+    """0666 minus the process's umask: the mode ``open(path, "w")`` gives a new file."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 def write_atomic(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` through a temporary file in the same folder, renamed
     into place: a failure leaves neither a partial file nor a damaged earlier one."""
@@ -105,6 +112,9 @@ def write_atomic(path: str | Path, data: bytes) -> Path:
     try:
         with os.fdopen(handle, "wb") as out:
             out.write(data)
+        # mkstemp makes the file private (0600): give it the mode a plain write would,
+        # or the one of the file it replaces.
+        os.chmod(temporary, path.stat().st_mode & 0o7777 if path.exists() else _default_mode())
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)

@@ -1,0 +1,1350 @@
+"""Scenes: a glTF document, or an OBJ / PLY with its attributes, compressed whole.
+
+Every triangle primitive is simplified with its attributes (UV seams and hard normal edges
+kept), its positions quantized at its own B found by the search of :mod:`meshbits.search`,
+its other attributes at bits chosen from their own tolerance, and written with
+``KHR_draco_mesh_compression`` (Draco, the default) or ``EXT_meshopt_compression`` with
+``KHR_mesh_quantization`` (meshoptimizer's codecs). Nodes, materials, textures and images
+(bytes unchanged), samplers, skins, animations, cameras, extras and the extensions meshbits
+does not touch are copied as they were. See docs/scenes.md.
+
+The error budget is a world-space length: a primitive's error is its mesh's error times the
+largest scale of the nodes that instance it. An error budget is met by every primitive at
+the fewest bytes each; a size budget is split across primitives by the common world-space
+error that fills it (the split that minimises the scene's largest error).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import _core
+from .complexity import shape_complexity
+from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, FORMAT_MAX_BITS
+from .errors import MeshbitsError, MeshFileError
+from .gltf import (
+    COMPONENT_TYPES,
+    WIDTH_TYPES,
+    Document,
+    PrimitiveData,
+    image_size,
+    largest_scale,
+    load_document,
+)
+from .hausdorff import Reference, default_samples
+from .io import write_atomic
+from .quantize import precision_bits
+from .search import Attributes, Search, run_search
+
+__all__ = [
+    "CODECS",
+    "NORMAL_TOLERANCE_DEGREES",
+    "PrimitiveReport",
+    "SceneResult",
+    "compress_scene",
+    "scene_info",
+]
+
+#: Codecs of :func:`compress_scene`.
+CODECS = ("draco", "meshopt")
+
+#: Largest angle (degrees) between a normal or tangent and its quantized value.
+NORMAL_TOLERANCE_DEGREES = 1.0
+
+#: UV bits when no texture tells the texel size: gltfpack's default.
+DEFAULT_UV_BITS = 12
+
+#: Bits of colours and skin weights (one byte a component).
+COLOR_BITS = WEIGHT_BITS = 8
+
+#: Area samples per mesh of a primitive's measurements (fewer than a single mesh's: a
+#: scene has many).
+SCENE_SAMPLES = 100_000
+
+#: Passes per primitive.
+SCENE_PASSES = 4
+
+#: Passes of the size split: common world errors tried.
+SIZE_SPLIT_PASSES = 5
+
+
+# --- attribute bits ---------------------------------------------------------------------
+
+
+def _octahedral_round_trip(vectors: np.ndarray, bits: int) -> np.ndarray:
+    """Unit vectors through the octahedral map quantized to signed ``bits``-bit
+    components, and back."""
+    v = vectors / np.maximum(np.abs(vectors).sum(axis=1, keepdims=True), 1e-30)
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    folded_x = np.where(z < 0, (1 - np.abs(y)) * np.sign(np.where(x == 0, 1, x)), x)
+    folded_y = np.where(z < 0, (1 - np.abs(x)) * np.sign(np.where(y == 0, 1, y)), y)
+    scale = float(2 ** (bits - 1) - 1)
+    qx, qy = np.round(folded_x * scale) / scale, np.round(folded_y * scale) / scale
+    qz = 1 - np.abs(qx) - np.abs(qy)
+    t = np.maximum(-qz, 0)
+    qx = qx - np.sign(qx) * t
+    qy = qy - np.sign(qy) * t
+    out = np.stack([qx, qy, qz], axis=1)
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-30)
+
+
+def normal_bits(vectors: np.ndarray, tolerance_degrees: float = NORMAL_TOLERANCE_DEGREES) -> int:
+    """The fewest octahedral bits (4 to 16) that keep every unit vector within
+    ``tolerance_degrees`` of itself."""
+    v = np.asarray(vectors, dtype=np.float64)[:, :3]
+    length = np.linalg.norm(v, axis=1)
+    v = v[length > 1e-12] / length[length > 1e-12, None]
+    if len(v) == 0:
+        return 8
+    limit = math.cos(math.radians(tolerance_degrees))
+    for bits in range(4, 17):
+        if np.min(np.sum(v * _octahedral_round_trip(v, bits), axis=1)) >= limit:
+            return bits
+    return 16
+
+
+def uv_bits(uv: np.ndarray, texels: int | None) -> int:
+    """Bits for texture coordinates: the fewest that keep them within half a texel of the
+    largest texture bound to them (``texels`` its largest side), 8 to 16;
+    :data:`DEFAULT_UV_BITS` without a texture."""
+    if not texels or len(uv) == 0:
+        return DEFAULT_UV_BITS
+    extent = float(np.ptp(uv, axis=0).max())
+    if extent <= 0:
+        return 8
+    return int(min(max(math.ceil(math.log2(extent * texels + 1)), 8), 16))
+
+
+def _material_textures(document: Document, material: int | None) -> dict[int, int]:
+    """``texCoord index -> largest image side`` over the textures a material binds."""
+    if material is None:
+        return {}
+    spec = document.json.get("materials", [])[material]
+    infos: list[dict[str, Any]] = []
+
+    def walk(value: Any) -> None:
+        if isinstance(value, dict):
+            if "index" in value and isinstance(value["index"], int):
+                infos.append(value)
+            for inner in value.values():
+                walk(inner)
+        elif isinstance(value, list):
+            for inner in value:
+                walk(inner)
+
+    walk(spec)
+    out: dict[int, int] = {}
+    textures = document.json.get("textures", [])
+    for info in infos:
+        if not 0 <= info["index"] < len(textures):
+            continue
+        source = textures[info["index"]].get("source")
+        if source is None:
+            continue
+        try:
+            data, _ = document.image_bytes(source)
+        except MeshbitsError:
+            continue
+        size = image_size(data)
+        if size:
+            channel = int(info.get("texCoord", 0))
+            out[channel] = max(out.get(channel, 0), max(size))
+    return out
+
+
+@dataclass(frozen=True)
+class AttributeBits:
+    """Bits of a primitive's other attributes: ``normal`` (octahedral, normals and
+    tangents), ``uv`` per texture-coordinate set, ``color``, ``weight``."""
+
+    normal: int
+    uv: dict[str, int]
+    color: int = COLOR_BITS
+    weight: int = WEIGHT_BITS
+
+
+def choose_attribute_bits(
+    document: Document, primitive: PrimitiveData, normal_tolerance: float
+) -> AttributeBits:
+    texels = _material_textures(document, primitive.material)
+    uv = {
+        name: uv_bits(values, texels.get(int(name.split("_")[1])))
+        for name, values in primitive.attributes.items()
+        if name.startswith("TEXCOORD_")
+    }
+    normals = [primitive.attributes[n] for n in ("NORMAL", "TANGENT") if n in primitive.attributes]
+    bits = max((normal_bits(n, normal_tolerance) for n in normals), default=8)
+    return AttributeBits(normal=bits, uv=uv)
+
+
+# --- encoding one primitive --------------------------------------------------------------
+
+
+@dataclass
+class Encoding:
+    """One primitive encoded: its bytes, what a decoder gets back, and what the writer
+    needs.
+
+    Attributes
+    ----------
+    size_bits : int
+        Bits of the compressed data.
+    vertices, faces : ndarray
+        The decoded positions (float64) and triangles: what is measured.
+    accessors : dict
+        ``name -> accessor fields`` (count, componentType, type, normalized, min/max).
+    draco : bytes or None
+        The Draco buffer, with ``draco_ids`` (glTF name -> Draco attribute id).
+    streams : list of dict
+        meshopt: per stream (``name``, ``data`` compressed, ``raw`` length, ``stride``,
+        ``count``, ``mode``, ``filter``).
+    dequantize : tuple or None
+        meshopt: ``(origin, step)`` mapping integer position codes to mesh units.
+    """
+
+    size_bits: int
+    vertices: np.ndarray = field(repr=False)
+    faces: np.ndarray = field(repr=False)
+    accessors: dict[str, dict[str, Any]] = field(repr=False)
+    draco: bytes | None = field(default=None, repr=False)
+    draco_ids: dict[str, int] = field(default_factory=dict)
+    streams: list[dict[str, Any]] = field(default_factory=list, repr=False)
+    dequantize: tuple[np.ndarray, float] | None = None
+    bits: int | None = None
+
+    @property
+    def data(self) -> bytes:
+        return self.draco or b"".join(s["data"] for s in self.streams)
+
+
+def _index_component(count: int) -> int:
+    return 5123 if count < 65536 else 5125
+
+
+def _accessor_fields(
+    values: np.ndarray, component: int, normalized: bool, bounds: bool
+) -> dict[str, Any]:
+    width = values.shape[1] if values.ndim == 2 else 1
+    out: dict[str, Any] = {
+        "count": len(values),
+        "componentType": component,
+        "type": WIDTH_TYPES[width],
+    }
+    if normalized:
+        out["normalized"] = True
+    if bounds and len(values):
+        cast = float if component == 5126 else int
+        out["min"] = [cast(x) for x in np.min(values, axis=0).reshape(-1)]
+        out["max"] = [cast(x) for x in np.max(values, axis=0).reshape(-1)]
+    return out
+
+
+def _unit_u8(values: np.ndarray) -> np.ndarray:
+    return np.clip(np.round(np.asarray(values) * 255.0), 0, 255).astype(np.uint8)
+
+
+def _weights_u8(weights: np.ndarray) -> np.ndarray:
+    """Skin weights as bytes summing to 255 (the largest takes the rounding)."""
+    w = _unit_u8(weights).astype(np.int64)
+    rows = np.arange(len(w))
+    largest = np.argmax(w, axis=1)
+    w[rows, largest] += 255 - w.sum(axis=1)
+    return np.clip(w, 0, 255).astype(np.uint8)
+
+
+def encode_draco_primitive(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    attributes: dict[str, np.ndarray] | None,
+    bits: int,
+    origin: np.ndarray,
+    grid_size: float,
+    attribute_bits: AttributeBits,
+) -> Encoding:
+    """A primitive as a ``KHR_draco_mesh_compression`` buffer: positions on the cube grid
+    at ``bits``, normals at ``attribute_bits.normal``, the first UV set at its bits,
+    colours as bytes; other sets, tangents, joints and weights as Draco generic
+    attributes."""
+    import DracoPy
+
+    attributes = attributes or {}
+    uv_names = sorted(n for n in attributes if n.startswith("TEXCOORD_"))
+    colors = sorted(n for n in attributes if n.startswith("COLOR_"))
+    generic: dict[str, np.ndarray] = {}
+    for name, values in attributes.items():
+        if name in ("NORMAL", uv_names[0] if uv_names else None, colors[0] if colors else None):
+            continue
+        if name.startswith("JOINTS_"):
+            generic[name] = np.asarray(values, dtype=np.uint16)
+        elif name.startswith("COLOR_"):
+            generic[name] = _unit_u8(values)
+        else:
+            generic[name] = np.asarray(values, dtype=np.float32)
+    data = DracoPy.encode(
+        np.asarray(vertices, dtype=np.float64),
+        np.asarray(faces, dtype=np.uint32),
+        quantization_bits=int(bits),
+        compression_level=7,
+        quantization_range=float(grid_size) if grid_size > 0 else -1,
+        quantization_origin=np.asarray(origin, dtype=np.float64),
+        normals=np.asarray(attributes["NORMAL"], dtype=np.float64)
+        if "NORMAL" in attributes
+        else None,
+        tex_coord=np.asarray(attributes[uv_names[0]], dtype=np.float64) if uv_names else None,
+        colors=_unit_u8(attributes[colors[0]]) if colors else None,
+        generic_attributes=generic or None,
+        normal_quantization_bits=attribute_bits.normal if "NORMAL" in attributes else None,
+        tex_coord_quantization_bits=attribute_bits.uv.get(uv_names[0]) if uv_names else None,
+    )
+    mesh = DracoPy.decode(data)
+    ids: dict[str, int] = {}
+    decoded: dict[str, np.ndarray] = {}
+    for attribute in mesh.attributes:
+        kind, name = attribute["attribute_type"], attribute["name"]
+        glname = (
+            {
+                0: "POSITION",
+                1: "NORMAL",
+                2: colors[0] if colors else None,
+                3: uv_names[0] if uv_names else None,
+            }.get(kind)
+            if kind != 4
+            else name
+        )
+        if glname is None:
+            continue
+        ids[glname] = int(attribute["unique_id"])
+        decoded[glname] = np.asarray(attribute["data"])
+    positions = decoded["POSITION"].astype(np.float64)
+    triangles = np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3)
+    accessors = {"POSITION": _accessor_fields(positions, 5126, False, True)}
+    for name, values in decoded.items():
+        if name == "POSITION":
+            continue
+        if name.startswith("COLOR_"):
+            accessors[name] = _accessor_fields(values, 5121, True, False)
+        elif name.startswith("JOINTS_"):
+            accessors[name] = _accessor_fields(values, 5123, False, False)
+        else:
+            accessors[name] = _accessor_fields(values, 5126, False, False)
+    accessors["indices"] = {
+        "count": int(triangles.size),
+        "componentType": _index_component(len(positions)),
+        "type": "SCALAR",
+    }
+    return Encoding(
+        size_bits=8 * len(data),
+        vertices=positions,
+        faces=triangles,
+        accessors=accessors,
+        draco=data,
+        draco_ids=ids,
+    )
+
+
+def _stream(name: str, rows: np.ndarray, filter: str = "NONE") -> dict[str, Any]:
+    """A vertex stream through meshoptimizer's vertex codec, rows padded to 4 bytes."""
+    rows = np.ascontiguousarray(rows)
+    raw = rows.view(np.uint8).reshape(len(rows), -1)
+    pad = (-raw.shape[1]) % 4
+    if pad:
+        raw = np.hstack([raw, np.zeros((len(raw), pad), dtype=np.uint8)])
+    stride = raw.shape[1]
+    flat = np.ascontiguousarray(raw).reshape(-1)
+    return {
+        "name": name,
+        "data": _core.meshopt_encode_vertices(flat, stride),
+        "raw": flat.tobytes(),
+        "stride": stride,
+        "count": len(rows),
+        "mode": "ATTRIBUTES",
+        "filter": filter,
+    }
+
+
+def encode_meshopt_primitive(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    attributes: dict[str, np.ndarray] | None,
+    bits: int,
+    origin: np.ndarray,
+    grid_size: float,
+    attribute_bits: AttributeBits,
+    *,
+    integer_positions: bool = True,
+) -> Encoding:
+    """A primitive as ``EXT_meshopt_compression`` streams under ``KHR_mesh_quantization``,
+    triangles and vertices first reordered for the codecs (as gltfpack does): positions as
+    their integer codes on the cube grid (bytes up to 8 bits, shorts up to 16; the
+    dequantization goes to the nodes), or as float32 on the grid for a skinned primitive;
+    normals and tangents through the octahedral filter; UVs as float32 rounded to their
+    bits; colours and weights as normalized bytes; joints as bytes or shorts."""
+    attributes = attributes or {}
+    order_faces, old = _core.meshopt_reorder(
+        np.ascontiguousarray(faces, dtype=np.uint32), len(vertices)
+    )
+    vertices = np.asarray(vertices)[old]
+    attributes = {name: np.asarray(values)[old] for name, values in attributes.items()}
+    faces = order_faces.astype(np.int64)
+    n = len(vertices)
+    step = grid_size / (2**bits - 1) if grid_size > 0 else 1.0
+    codes = np.clip(np.round((vertices - origin) / step), 0, 2**bits - 1)
+    grid = origin + codes * step
+    streams, accessors = [], {}
+    if integer_positions:
+        dtype = np.uint8 if bits <= 8 else np.uint16
+        stored = codes.astype(dtype)
+        streams.append(_stream("POSITION", stored))
+        accessors["POSITION"] = _accessor_fields(
+            stored, COMPONENT_TYPES[np.dtype(dtype)], False, True
+        )
+    else:
+        stored = grid.astype(np.float32)
+        streams.append(_stream("POSITION", stored))
+        accessors["POSITION"] = _accessor_fields(stored, 5126, False, True)
+    for name, values in attributes.items():
+        values = np.asarray(values)
+        if name in ("NORMAL", "TANGENT"):
+            vectors = np.zeros((n, 4), dtype=np.float32)
+            vectors[:, :3] = values[:, :3]
+            vectors[:, 3] = values[:, 3] if values.shape[1] == 4 else 1.0
+            octa = _core.meshopt_encode_octahedral(
+                np.ascontiguousarray(vectors), attribute_bits.normal
+            )
+            component = 5120 if octa.shape[1] == 4 else 5122
+            stream = _stream(name, octa, "OCTAHEDRAL")
+            stream["stride"] = octa.shape[1]
+            streams.append(stream)
+            width = 3 if name == "NORMAL" else 4
+            accessors[name] = {
+                "count": n,
+                "componentType": component,
+                "type": WIDTH_TYPES[width],
+                "normalized": True,
+            }
+        elif name.startswith("TEXCOORD_"):
+            b = attribute_bits.uv.get(name, DEFAULT_UV_BITS)
+            lo, extent = values.min(axis=0), max(float(np.ptp(values, axis=0).max()), 1e-30)
+            uv_step = extent / (2**b - 1)
+            rounded = (lo + np.round((values - lo) / uv_step) * uv_step).astype(np.float32)
+            streams.append(_stream(name, rounded))
+            accessors[name] = _accessor_fields(rounded, 5126, False, False)
+        elif name.startswith("COLOR_"):
+            stored = _unit_u8(values)
+            streams.append(_stream(name, stored))
+            accessors[name] = _accessor_fields(stored, 5121, True, False)
+        elif name.startswith("WEIGHTS_"):
+            stored = _weights_u8(values)
+            streams.append(_stream(name, stored))
+            accessors[name] = _accessor_fields(stored, 5121, True, False)
+        elif name.startswith("JOINTS_"):
+            dtype = np.uint8 if values.size == 0 or values.max() < 256 else np.uint16
+            stored = values.astype(dtype)
+            streams.append(_stream(name, stored))
+            accessors[name] = _accessor_fields(
+                stored, COMPONENT_TYPES[np.dtype(dtype)], False, False
+            )
+        else:
+            stored = values.astype(np.float32)
+            streams.append(_stream(name, stored))
+            accessors[name] = _accessor_fields(stored, 5126, False, False)
+    index_component = _index_component(n)
+    triangles = np.ascontiguousarray(faces, dtype=np.uint32)
+    index_size = 2 if index_component == 5123 else 4
+    streams.append(
+        {
+            "name": "indices",
+            "data": _core.meshopt_encode_triangles(triangles, n),
+            "raw": triangles.astype(np.uint16 if index_size == 2 else np.uint32).tobytes(),
+            "stride": index_size,
+            "count": int(triangles.size),
+            "mode": "TRIANGLES",
+            "filter": "NONE",
+        }
+    )
+    accessors["indices"] = {
+        "count": int(triangles.size),
+        "componentType": index_component,
+        "type": "SCALAR",
+    }
+    return Encoding(
+        size_bits=8 * sum(len(s["data"]) for s in streams),
+        vertices=grid,
+        faces=np.asarray(faces, dtype=np.int64),
+        accessors=accessors,
+        streams=streams,
+        dequantize=(np.asarray(origin, dtype=np.float64), float(step))
+        if integer_positions
+        else None,
+    )
+
+
+# --- results ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PrimitiveReport:
+    """What compress_scene did to one primitive.
+
+    Attributes
+    ----------
+    mesh, primitive : int
+        Its indices in the document.
+    name : str or None
+        The mesh's name.
+    instances : int
+        Nodes that show it.
+    scale : float
+        The largest scale of those nodes (world units per mesh unit).
+    budget : float
+        Its error budget in its mesh's units (``world budget / scale``), or None.
+    bits : int
+        Bits per coordinate of its positions.
+    normal_bits, uv_bits : int or None
+        Bits of its normals (octahedral) and of its first UV set.
+    input_vertices, vertices, faces : int
+    bytes : int
+        Its compressed geometry.
+    error : float
+        Measured Hausdorff distance to the input primitive (its mesh's units).
+    world_error : float
+        ``error * scale``.
+    met : bool
+    kept : str or None
+        Why it was copied as it was, when it was (morph targets).
+    """
+
+    mesh: int
+    primitive: int
+    name: str | None
+    instances: int
+    scale: float
+    budget: float | None
+    bits: int
+    normal_bits: int | None
+    uv_bits: int | None
+    input_vertices: int
+    vertices: int
+    faces: int
+    bytes: int
+    error: float
+    world_error: float
+    met: bool
+    kept: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class SceneResult:
+    """Outcome of :func:`compress_scene`.
+
+    Attributes
+    ----------
+    constraint : str
+        ``"error"`` or ``"size"``.
+    budget : float
+        World units for an error budget, bytes for a size budget.
+    met : bool
+    message : str
+    codec : str
+    world_error : float
+        The largest world-space error of any primitive (world units).
+    size_bytes : int
+        The written file (GLB; for ``.gltf``, the JSON plus its buffer).
+    input_bytes : int
+    primitives : tuple of PrimitiveReport
+    seconds : float
+    """
+
+    constraint: str
+    budget: float
+    met: bool
+    message: str
+    codec: str
+    world_error: float
+    size_bytes: int
+    input_bytes: int
+    primitives: tuple[PrimitiveReport, ...]
+    seconds: float
+    files: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {k: v for k, v in asdict(self).items() if k != "primitives"}
+        out["primitives"] = [p.to_dict() for p in self.primitives]
+        return out
+
+
+# --- the scene search ----------------------------------------------------------------------
+
+
+@dataclass
+class _Job:
+    data: PrimitiveData
+    name: str | None
+    instances: int
+    scale: float
+    bits: AttributeBits
+    reference: Reference | None = None
+    k: float = 0.0
+    grid_size: float = 0.0
+    results: dict[float, tuple[Any, Encoding, Any]] = field(default_factory=dict)
+
+
+def _attribute_weights(names: list[str], budget: float, bits: AttributeBits) -> dict[str, float]:
+    """meshoptimizer's attribute weights: an attribute off by its own tolerance costs like
+    a position off by the error budget."""
+    weights = {}
+    for name in names:
+        if name in ("NORMAL", "TANGENT"):
+            weights[name] = budget / math.sin(math.radians(NORMAL_TOLERANCE_DEGREES) * 4)
+        elif name.startswith("TEXCOORD_"):
+            weights[name] = budget * 2 ** bits.uv.get(name, DEFAULT_UV_BITS) / 4
+        elif name.startswith("COLOR_"):
+            weights[name] = budget * 32
+        else:
+            weights[name] = 0.0
+    return weights
+
+
+def _search_primitive(job: _Job, budget: float, codec: str, seed: int) -> tuple[Any, Encoding, Any]:
+    """The fewest bytes of one primitive within a local error budget (cached)."""
+    if budget in job.results:
+        return job.results[budget]
+    data = job.data
+    original = (data.positions, data.faces)
+    if job.reference is None:
+        job.reference = Reference(
+            original, samples=min(default_samples(len(data.faces)), SCENE_SAMPLES), seed=seed
+        )
+        complexity = shape_complexity(original)
+        job.k = max(complexity.k, 1e-6)
+        job.grid_size = complexity.grid_size
+    attributes = None
+    if data.attributes:
+        attributes = Attributes(
+            values=data.attributes,
+            weights=_attribute_weights(list(data.attributes), budget, job.bits),
+            interpolate=not data.skinned,
+        )
+
+    def encode(vertices, faces, attrs, bits, origin, grid_size):
+        if codec == "draco":
+            return encode_draco_primitive(vertices, faces, attrs, bits, origin, grid_size, job.bits)
+        return encode_meshopt_primitive(
+            vertices,
+            faces,
+            attrs,
+            bits,
+            origin,
+            grid_size,
+            job.bits,
+            integer_positions=not data.skinned,
+        )
+
+    max_bits = min(
+        16 if codec == "meshopt" else FORMAT_MAX_BITS["draco"], precision_bits(data.positions)
+    )
+    search = Search(
+        original,
+        job.reference,
+        constraint="error",
+        budget=budget,
+        k=job.k,
+        grid_size=job.grid_size,
+        max_bits=max_bits,
+        format="draco",
+        alpha=DRACO_ALPHA,
+        connectivity_bits=DRACO_CONNECTIVITY_BITS,
+        method="meshopt" if attributes is not None else "auto",
+        samples=job.reference.samples,
+        attributes=attributes,
+        codec=encode,
+    )
+    run_search(search, SCENE_PASSES)
+    chosen = search.best() or search.closest()
+    outcome = (chosen, search.encoded(chosen), search.levels[chosen.level])
+    job.results[budget] = outcome
+    return outcome
+
+
+def compress_scene(
+    source: str | Path | Document,
+    *,
+    error: float | None = None,
+    size: float | None = None,
+    relative: bool = False,
+    codec: str = "draco",
+    normal_tolerance: float = NORMAL_TOLERANCE_DEGREES,
+    output: str | Path | None = None,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> SceneResult:
+    """Compress every triangle primitive of a scene to one world-space budget and write
+    the scene with everything else kept.
+
+    Parameters
+    ----------
+    source
+        A ``.glb`` / ``.gltf`` file, an OBJ (with MTL and textures), a PLY (with colours),
+        or any mesh trimesh reads; or a :class:`meshbits.gltf.Document`.
+    error
+        World-space error budget: the Hausdorff distance of every primitive, scaled by the
+        largest scale of the nodes that show it, in world units (or with ``relative``, as
+        a fraction of the largest side of the scene's world bounding box).
+    size
+        Size budget of the whole file, in **bits** (the CLI parses "100KB").
+    codec
+        ``"draco"`` (``KHR_draco_mesh_compression``) or ``"meshopt"``
+        (``EXT_meshopt_compression`` with ``KHR_mesh_quantization``).
+    normal_tolerance
+        Largest angle (degrees) between a normal or tangent and its quantized value.
+    output
+        ``.glb`` or ``.gltf`` to write (atomically; a ``.gltf``'s buffer goes beside it,
+        named after it). None: nothing written.
+    seed
+        Seed of every measurement.
+    progress
+        Called with a line per primitive.
+
+    Returns
+    -------
+    SceneResult
+    """
+    start = time.perf_counter()
+    given = [n for n, v in (("error", error), ("size", size)) if v is not None]
+    if len(given) != 1:
+        raise MeshbitsError(f"give exactly one of error, size (got {given or 'none'})")
+    if codec not in CODECS:
+        raise MeshbitsError(f"codec must be one of {CODECS}, got {codec!r}")
+    budget = float(error if error is not None else size)  # type: ignore[arg-type]
+    if not (math.isfinite(budget) and budget > 0):
+        raise MeshbitsError(f"the {given[0]} budget must be a positive finite number, got {budget}")
+    if not (0 < normal_tolerance < 90):
+        raise MeshbitsError(f"normal_tolerance must be in (0, 90) degrees, got {normal_tolerance}")
+    if output is not None and Path(output).suffix.lower() not in (".glb", ".gltf"):
+        raise MeshbitsError(f"a scene is written as .glb or .gltf, not {Path(output).suffix}")
+    input_bytes = 0
+    if isinstance(source, Document):
+        document = source
+    else:
+        document = load_document(source)
+        input_bytes = _file_bytes(Path(source), document)
+    say = progress or (lambda _line: None)
+    instances = document.mesh_instances()
+    jobs: list[_Job] = []
+    kept: list[PrimitiveData] = []
+    for data in document.triangle_primitives():
+        if data.morph:
+            kept.append(data)
+            continue
+        if len(data.faces) == 0:
+            kept.append(data)
+            continue
+        nodes = instances.get(data.mesh, [])
+        scale = max((largest_scale(m) for _, m in nodes), default=1.0) or 1.0
+        mesh_name = document.json["meshes"][data.mesh].get("name")
+        bits = choose_attribute_bits(document, data, normal_tolerance)
+        jobs.append(_Job(data, mesh_name, len(nodes), scale, bits))
+    if not jobs:
+        raise MeshFileError("the scene has no triangle primitive to compress")
+    world_size = _world_size(document, instances)
+    if given[0] == "error" and relative:
+        budget *= world_size
+
+    def run_at(world_error: float) -> list[tuple[Any, Encoding, Any]]:
+        outcomes = []
+        for job in jobs:
+            outcome = _search_primitive(job, world_error / job.scale, codec, seed)
+            outcomes.append(outcome)
+            say(
+                f"mesh {job.data.mesh} primitive {job.data.index}: B = {outcome[0].bits}, "
+                f"V = {outcome[2].vertex_count}, {outcome[1].size_bits // 8} bytes, error "
+                f"{outcome[0].measured_error * job.scale:.4g} (world units)"
+            )
+        return outcomes
+
+    if given[0] == "error":
+        outcomes = run_at(budget)
+        target_error = budget
+    else:
+        outcomes, target_error = _split_size(jobs, budget, run_at, document, world_size)
+    measured = [o[0].measured_error for o in outcomes]
+    encodings = [o[1] for o in outcomes]
+    if codec == "meshopt":
+        encodings, measured = _shared_grids(jobs, outcomes)
+    files, size_bytes = _write(document, jobs, encodings, codec, output)
+    reports = []
+    for job, (record, _, _), encoding, error_measured in zip(
+        jobs, outcomes, encodings, measured, strict=True
+    ):
+        reports.append(
+            PrimitiveReport(
+                mesh=job.data.mesh,
+                primitive=job.data.index,
+                name=job.name,
+                instances=job.instances,
+                scale=job.scale,
+                budget=target_error / job.scale,
+                bits=encoding.bits if encoding.bits is not None else record.bits,
+                normal_bits=job.bits.normal
+                if any(n in job.data.attributes for n in ("NORMAL", "TANGENT"))
+                else None,
+                uv_bits=job.bits.uv.get("TEXCOORD_0"),
+                input_vertices=len(job.data.positions),
+                vertices=len(encoding.vertices),
+                faces=len(encoding.faces),
+                bytes=encoding.size_bits // 8,
+                error=error_measured,
+                world_error=error_measured * job.scale,
+                met=error_measured <= target_error / job.scale * (1 + 1e-12),
+            )
+        )
+    for data in kept:
+        reports.append(
+            PrimitiveReport(
+                mesh=data.mesh,
+                primitive=data.index,
+                name=document.json["meshes"][data.mesh].get("name"),
+                instances=len(instances.get(data.mesh, [])),
+                scale=1.0,
+                budget=None,
+                bits=0,
+                normal_bits=None,
+                uv_bits=None,
+                input_vertices=len(data.positions),
+                vertices=len(data.positions),
+                faces=len(data.faces),
+                bytes=0,
+                error=0.0,
+                world_error=0.0,
+                met=True,
+                kept="morph targets" if data.morph else "no faces",
+            )
+        )
+    world_error = max(r.world_error for r in reports)
+    if given[0] == "error":
+        met = all(r.met for r in reports)
+        message = (
+            f"{'met' if met else 'could not meet'} the world-space error budget of "
+            f"{budget:.6g}: largest error {world_error:.4g}, {size_bytes} bytes"
+        )
+    else:
+        met = size_bytes <= budget / 8
+        message = (
+            f"{'met' if met else 'could not meet'} the size budget of {budget / 8:.6g} bytes: "
+            f"{size_bytes} bytes, largest world-space error {world_error:.4g}"
+        )
+    return SceneResult(
+        constraint=given[0],
+        budget=budget,
+        met=met,
+        message=message,
+        codec=codec,
+        world_error=world_error,
+        size_bytes=size_bytes,
+        input_bytes=input_bytes,
+        primitives=tuple(reports),
+        seconds=time.perf_counter() - start,
+        files=tuple(files),
+    )
+
+
+def _shared_grids(jobs: list[_Job], outcomes) -> tuple[list[Encoding], list[float]]:
+    """meshopt: the primitives of one mesh share one dequantization (their nodes'), so
+    they are quantized again on one cube grid over their boxes, with the bits whose step
+    is at most the finest any of them chose; and measured again."""
+    by_mesh: dict[int, list[int]] = {}
+    for i, job in enumerate(jobs):
+        by_mesh.setdefault(job.data.mesh, []).append(i)
+    encodings = [o[1] for o in outcomes]
+    measured = [o[0].measured_error for o in outcomes]
+    for members in by_mesh.values():
+        if len(members) == 1 and not jobs[members[0]].data.skinned:
+            encodings[members[0]].bits = outcomes[members[0]][0].bits
+            continue
+        levels = [outcomes[i][2] for i in members]
+        lo = np.min([np.minimum(lv.origin, lv.vertices.min(axis=0)) for lv in levels], axis=0)
+        hi = np.max([lv.vertices.max(axis=0) for lv in levels], axis=0)
+        from .quantize import cube_grid
+
+        origin, side = cube_grid(lo, np.maximum(hi, lo))
+        steps = [
+            lv.grid_size / (2 ** outcomes[i][0].bits - 1)
+            for i, lv in zip(members, levels, strict=True)
+        ]
+        bits = int(min(16, max(1, math.ceil(math.log2(side / min(steps) + 1))))) if side > 0 else 1
+        for i, level in zip(members, levels, strict=True):
+            job = jobs[i]
+            encoding = encode_meshopt_primitive(
+                level.vertices,
+                level.faces,
+                level.attributes,
+                bits,
+                origin,
+                side,
+                job.bits,
+                integer_positions=not job.data.skinned,
+            )
+            encoding.bits = bits
+            assert job.reference is not None
+            measured[i] = job.reference.hausdorff((encoding.vertices, encoding.faces)).distance
+            encodings[i] = encoding
+    return encodings, measured
+
+
+def _file_bytes(path: Path, document: Document) -> int:
+    total = path.stat().st_size
+    if path.suffix.lower() == ".gltf":
+        total += sum(len(b) for b in document.buffers)
+    return total
+
+
+def _world_size(document: Document, instances: dict[int, list[tuple[int, np.ndarray]]]) -> float:
+    """Largest side of the scene's world bounding box."""
+    lows, highs = [], []
+    for data in document.triangle_primitives():
+        for _, matrix in instances.get(data.mesh, [(-1, np.eye(4))]):
+            world = data.positions @ matrix[:3, :3].T + matrix[:3, 3]
+            if len(world):
+                lows.append(world.min(axis=0))
+                highs.append(world.max(axis=0))
+    if not lows:
+        raise MeshFileError("the scene has no vertices")
+    return float((np.max(highs, axis=0) - np.min(lows, axis=0)).max())
+
+
+def _split_size(jobs, size_bits, run_at, document, world_size):
+    """The common world-space error whose primitives fill the size budget: the split of
+    bytes that minimises the scene's largest error, found on a log scale from measured
+    sizes (bytes fall about as 1/E)."""
+    fixed = _fixed_bytes(document, jobs)
+    room = size_bits / 8 - fixed
+    if room <= 0:
+        raise MeshbitsError(
+            f"the size budget ({size_bits / 8:.6g} bytes) does not hold the scene's images and "
+            f"other data ({fixed} bytes)"
+        )
+    error = 0.002 * world_size
+    best = None
+    tried = []
+    for _ in range(SIZE_SPLIT_PASSES):
+        outcomes = run_at(error)
+        total = sum(o[1].size_bits // 8 for o in outcomes)
+        tried.append((error, total))
+        if total <= room and (best is None or error < best[1]):
+            best = (outcomes, error)
+        fitting = [e for e, t in tried if t <= room]
+        over = [e for e, t in tried if t > room]
+        if fitting and over:
+            lo, hi = min(fitting), max(over)
+            if lo / hi < 1.05:
+                break
+            error = math.sqrt(lo * hi)
+        else:
+            error *= min(max(total / room, 0.25), 4.0)
+    if best is None:
+        error, _ = min(tried, key=lambda et: et[1])
+        return run_at(error), error
+    return best
+
+
+def _fixed_bytes(document: Document, jobs: list[_Job]) -> int:
+    """Bytes the output keeps whatever the geometry: every bufferView not read by a
+    compressed primitive, plus the JSON (estimated at its input size)."""
+    replaced = set()
+    for job in jobs:
+        prim = document.json["meshes"][job.data.mesh]["primitives"][job.data.index]
+        replaced.update(prim.get("attributes", {}).values())
+        if prim.get("indices") is not None:
+            replaced.add(prim["indices"])
+    views = set()
+    for i, acc in enumerate(document.json.get("accessors", [])):
+        if i not in replaced and acc.get("bufferView") is not None:
+            views.add(acc["bufferView"])
+    total = sum(int(document.json["bufferViews"][v]["byteLength"]) for v in views)
+    for i in range(len(document.json.get("images", []))):
+        total += len(document.image_bytes(i)[0])
+    return total + len(json.dumps(document.json))
+
+
+# --- writing ------------------------------------------------------------------------------
+
+
+class _Blob:
+    """The output buffer: bytes appended at 4-byte alignment."""
+
+    def __init__(self) -> None:
+        self.parts: list[bytes] = []
+        self.length = 0
+
+    def add(self, data: bytes) -> int:
+        pad = (-self.length) % 4
+        if pad:
+            self.parts.append(b"\0" * pad)
+            self.length += pad
+        offset = self.length
+        self.parts.append(bytes(data))
+        self.length += len(data)
+        return offset
+
+    def bytes(self) -> bytes:
+        return b"".join(self.parts) + b"\0" * ((-self.length) % 4)
+
+
+def _write(document: Document, jobs, encodings, codec: str, output) -> tuple[list[str], int]:
+    """Rebuild the document with the compressed primitives; write it when asked; return
+    the files and the size of the output."""
+    out = copy.deepcopy(document.json)
+    blob = _Blob()
+    fallback = _Blob()
+    views: list[dict[str, Any]] = []
+    accessors: list[dict[str, Any]] = []
+    replaced = {(job.data.mesh, job.data.index) for job in jobs}
+    view_map: dict[int, int] = {}
+
+    def copy_view(old: int) -> int:
+        if old not in view_map:
+            spec = {
+                k: v
+                for k, v in document.json["bufferViews"][old].items()
+                if k not in ("buffer", "byteOffset", "extensions")
+            }
+            spec["buffer"] = 0
+            spec["byteOffset"] = blob.add(bytes(document.view_bytes(old)))
+            views.append(spec)
+            view_map[old] = len(views) - 1
+        return view_map[old]
+
+    accessor_map: dict[int, int] = {}
+
+    def copy_accessor(old: int) -> int:
+        if old not in accessor_map:
+            spec = copy.deepcopy(document.json["accessors"][old])
+            if spec.get("bufferView") is not None:
+                spec["bufferView"] = copy_view(spec["bufferView"])
+            if spec.get("sparse"):
+                for part in ("indices", "values"):
+                    spec["sparse"][part]["bufferView"] = copy_view(
+                        spec["sparse"][part]["bufferView"]
+                    )
+            accessors.append(spec)
+            accessor_map[old] = len(accessors) - 1
+        return accessor_map[old]
+
+    # Everything not replaced keeps its accessors (data copied as it was).
+    for m, mesh in enumerate(out.get("meshes", [])):
+        for p, prim in enumerate(mesh.get("primitives", [])):
+            if (m, p) in replaced:
+                continue
+            source = document.json["meshes"][m]["primitives"][p]
+            prim["attributes"] = {
+                k: copy_accessor(v) for k, v in source.get("attributes", {}).items()
+            }
+            if source.get("indices") is not None:
+                prim["indices"] = copy_accessor(source["indices"])
+            if source.get("targets"):
+                prim["targets"] = [
+                    {k: copy_accessor(v) for k, v in t.items()} for t in source["targets"]
+                ]
+            draco = (source.get("extensions") or {}).get("KHR_draco_mesh_compression")
+            if draco is not None:
+                prim.setdefault("extensions", {})["KHR_draco_mesh_compression"] = {
+                    **draco,
+                    "bufferView": copy_view(draco["bufferView"]),
+                }
+    for skin in out.get("skins", []):
+        if skin.get("inverseBindMatrices") is not None:
+            skin["inverseBindMatrices"] = copy_accessor(skin["inverseBindMatrices"])
+    for animation in out.get("animations", []):
+        for sampler in animation.get("samplers", []):
+            sampler["input"] = copy_accessor(sampler["input"])
+            sampler["output"] = copy_accessor(sampler["output"])
+    for node in out.get("nodes", []):
+        instancing = (node.get("extensions") or {}).get("EXT_mesh_gpu_instancing")
+        if instancing:
+            instancing["attributes"] = {
+                k: copy_accessor(v) for k, v in instancing.get("attributes", {}).items()
+            }
+    for i, image in enumerate(out.get("images", [])):
+        data, mime = document.image_bytes(i)
+        image.pop("uri", None)
+        image["bufferView"] = len(views)
+        views.append({"buffer": 0, "byteOffset": blob.add(data), "byteLength": len(data)})
+        if mime:
+            image["mimeType"] = mime
+
+    dequantize: dict[int, tuple[np.ndarray, float]] = {}
+    for job, encoding in zip(jobs, encodings, strict=True):
+        prim = out["meshes"][job.data.mesh]["primitives"][job.data.index]
+        extensions = prim.get("extensions") or {}
+        extensions.pop("KHR_draco_mesh_compression", None)
+        if extensions:
+            prim["extensions"] = extensions
+        else:
+            prim.pop("extensions", None)
+        prim["mode"] = 4
+        attributes = {}
+        for name, spec in encoding.accessors.items():
+            if name == "indices":
+                continue
+            accessors.append(dict(spec))
+            attributes[name] = len(accessors) - 1
+        accessors.append(dict(encoding.accessors["indices"]))
+        prim["indices"] = len(accessors) - 1
+        prim["attributes"] = attributes
+        if codec == "draco":
+            views.append(
+                {
+                    "buffer": 0,
+                    "byteOffset": blob.add(encoding.draco),
+                    "byteLength": len(encoding.draco),
+                }
+            )
+            prim.setdefault("extensions", {})["KHR_draco_mesh_compression"] = {
+                "bufferView": len(views) - 1,
+                "attributes": {name: encoding.draco_ids[name] for name in attributes},
+            }
+        else:
+            for stream in encoding.streams:
+                target = 34963 if stream["mode"] == "TRIANGLES" else 34962
+                view = {
+                    "buffer": 1,
+                    "byteOffset": fallback.add(stream["raw"]),
+                    "byteLength": len(stream["raw"]),
+                    "target": target,
+                    "extensions": {
+                        "EXT_meshopt_compression": {
+                            "buffer": 0,
+                            "byteOffset": blob.add(stream["data"]),
+                            "byteLength": len(stream["data"]),
+                            "byteStride": stream["stride"],
+                            "count": stream["count"],
+                            "mode": stream["mode"],
+                            **({"filter": stream["filter"]} if stream["filter"] != "NONE" else {}),
+                        }
+                    },
+                }
+                if stream["mode"] == "ATTRIBUTES":
+                    view["byteStride"] = stream["stride"]
+                views.append(view)
+                index = len(views) - 1
+                key = prim["indices"] if stream["name"] == "indices" else attributes[stream["name"]]
+                accessors[key]["bufferView"] = index
+            if encoding.dequantize is not None:
+                dequantize[job.data.mesh] = encoding.dequantize
+    if codec == "meshopt" and dequantize:
+        _apply_dequantization(out, document, dequantize)
+    out["accessors"] = accessors
+    out["bufferViews"] = views
+    extensions_used = set(out.get("extensionsUsed", []))
+    extensions_required = set(out.get("extensionsRequired", []))
+    still_draco = any(
+        "KHR_draco_mesh_compression" in (p.get("extensions") or {})
+        for mesh in out.get("meshes", [])
+        for p in mesh.get("primitives", [])
+    )
+    if not still_draco:
+        extensions_used.discard("KHR_draco_mesh_compression")
+        extensions_required.discard("KHR_draco_mesh_compression")
+    new = {"KHR_draco_mesh_compression"} if codec == "draco" else {"EXT_meshopt_compression"}
+    if codec == "meshopt":
+        new.add("KHR_mesh_quantization")
+    out["extensionsUsed"] = sorted(extensions_used | new)
+    out["extensionsRequired"] = sorted(extensions_required | new)
+    data = blob.bytes()
+    buffers = [{"byteLength": len(data)}]
+    if codec == "meshopt":
+        buffers.append(
+            {
+                "byteLength": fallback.length + (-fallback.length) % 4,
+                "extensions": {"EXT_meshopt_compression": {"fallback": True}},
+            }
+        )
+    out["buffers"] = buffers
+    out.setdefault("asset", {})["generator"] = "meshbits"
+    if output is None:
+        return [], len(_glb(out, data))
+    path = Path(output)
+    if path.suffix.lower() == ".glb":
+        glb = _glb(out, data)
+        write_atomic(path, glb)
+        return [str(path)], len(glb)
+    bin_name = f"{path.stem}.bin"
+    out["buffers"][0]["uri"] = bin_name
+    text = json.dumps(out, separators=(",", ":")).encode()
+    write_atomic(path.with_name(bin_name), data)
+    write_atomic(path, text)
+    return [str(path), str(path.with_name(bin_name))], len(text) + len(data)
+
+
+def _glb(document: dict[str, Any], binary: bytes) -> bytes:
+    """A GLB container: the JSON chunk (space-padded) and the binary chunk."""
+    import struct
+
+    text = json.dumps(document, separators=(",", ":")).encode()
+    text += b" " * ((-len(text)) % 4)
+    binary += b"\0" * ((-len(binary)) % 4)
+    total = 12 + 8 + len(text) + (8 + len(binary) if binary else 0)
+    parts = [struct.pack("<4sII", b"glTF", 2, total), struct.pack("<I4s", len(text), b"JSON"), text]
+    if binary:
+        parts += [struct.pack("<I4s", len(binary), b"BIN\0"), binary]
+    return b"".join(parts)
+
+
+def _apply_dequantization(
+    out: dict[str, Any], document: Document, dequantize: dict[int, tuple[np.ndarray, float]]
+) -> None:
+    """Integer position codes need ``origin + code * step``: folded into the nodes that
+    show the mesh, or, for a node with children, an animation or a skin, into a new child
+    node that takes the mesh over."""
+    animated = document.animated_nodes()
+    nodes = out.setdefault("nodes", [])
+    for index in range(len(nodes)):
+        node = nodes[index]
+        mesh = node.get("mesh")
+        if mesh is None or mesh not in dequantize:
+            continue
+        origin, step = dequantize[mesh]
+        if node.get("children") or index in animated or node.get("skin") is not None:
+            child = {"mesh": mesh, "translation": [float(x) for x in origin], "scale": [step] * 3}
+            for key in ("weights",):
+                if key in node:
+                    child[key] = node.pop(key)
+            node.pop("mesh")
+            nodes.append(child)
+            node.setdefault("children", []).append(len(nodes) - 1)
+            continue
+        local = document.node_matrix(index)
+        d = np.eye(4)
+        d[:3, :3] *= step
+        d[:3, 3] = origin
+        if "matrix" in node:
+            node["matrix"] = [float(x) for x in (local @ d).T.reshape(-1)]
+        else:
+            rotation_scale = local[:3, :3]
+            node["translation"] = [float(x) for x in local[:3, 3] + rotation_scale @ origin]
+            node["scale"] = [float(s) * step for s in node.get("scale", [1.0, 1.0, 1.0])]
+
+
+def scene_info(path: str | Path) -> dict[str, Any]:
+    """What a scene file holds: meshes, primitives with their attributes, materials,
+    textures and images, nodes, animations, skins, extensions, and bytes by part."""
+    document = load_document(path)
+    j = document.json
+    meshes = []
+    geometry_views: set[int] = set()
+    for m, mesh in enumerate(j.get("meshes", [])):
+        prims = []
+        for p, prim in enumerate(mesh.get("primitives", [])):
+            attributes = {}
+            for name, acc in prim.get("attributes", {}).items():
+                spec = j["accessors"][acc]
+                attributes[name] = (
+                    f"{spec['type']} {np.dtype(_dtype_name(spec['componentType'])).name}"
+                    + (" normalized" if spec.get("normalized") else "")
+                )
+                if spec.get("bufferView") is not None:
+                    geometry_views.add(spec["bufferView"])
+            if (
+                prim.get("indices") is not None
+                and j["accessors"][prim["indices"]].get("bufferView") is not None
+            ):
+                geometry_views.add(j["accessors"][prim["indices"]]["bufferView"])
+            extensions = sorted((prim.get("extensions") or {}).keys())
+            draco = (prim.get("extensions") or {}).get("KHR_draco_mesh_compression")
+            if draco:
+                geometry_views.add(draco["bufferView"])
+            vertices = (
+                j["accessors"][prim["attributes"]["POSITION"]]["count"]
+                if "POSITION" in prim.get("attributes", {})
+                else 0
+            )
+            faces = (
+                (j["accessors"][prim["indices"]]["count"] // 3)
+                if prim.get("indices") is not None
+                else vertices // 3
+            )
+            prims.append(
+                {
+                    "primitive": p,
+                    "mode": prim.get("mode", 4),
+                    "vertices": vertices,
+                    "faces": faces,
+                    "attributes": attributes,
+                    "material": prim.get("material"),
+                    "morph_targets": len(prim.get("targets", [])),
+                    "extensions": extensions,
+                }
+            )
+        meshes.append({"mesh": m, "name": mesh.get("name"), "primitives": prims})
+    image_views = {
+        im["bufferView"] for im in j.get("images", []) if im.get("bufferView") is not None
+    }
+    animation_views = set()
+    for animation in j.get("animations", []):
+        for sampler in animation.get("samplers", []):
+            for key in ("input", "output"):
+                view = j["accessors"][sampler[key]].get("bufferView")
+                if view is not None:
+                    animation_views.add(view)
+    sizes = {"geometry": 0, "images": 0, "animation": 0, "other": 0}
+    for v, view in enumerate(j.get("bufferViews", [])):
+        part = (
+            "geometry"
+            if v in geometry_views
+            else "images"
+            if v in image_views
+            else "animation"
+            if v in animation_views
+            else "other"
+        )
+        sizes[part] += int(view.get("byteLength", 0))
+    images = []
+    for i, image in enumerate(j.get("images", [])):
+        data, mime = document.image_bytes(i)
+        if image.get("bufferView") is None:
+            sizes["images"] += len(data)
+        images.append(
+            {
+                "image": i,
+                "name": image.get("name"),
+                "mimeType": mime,
+                "bytes": len(data),
+                "size": image_size(data),
+            }
+        )
+    return {
+        "file": str(path),
+        "bytes": _file_bytes(Path(path), document),
+        "meshes": meshes,
+        "nodes": len(j.get("nodes", [])),
+        "scenes": len(j.get("scenes", [])),
+        "materials": len(j.get("materials", [])),
+        "textures": len(j.get("textures", [])),
+        "images": images,
+        "samplers": len(j.get("samplers", [])),
+        "skins": len(j.get("skins", [])),
+        "animations": len(j.get("animations", [])),
+        "cameras": len(j.get("cameras", [])),
+        "extensions_used": j.get("extensionsUsed", []),
+        "extensions_required": j.get("extensionsRequired", []),
+        "bytes_by_part": sizes,
+        "json_bytes": len(json.dumps(j)),
+    }
+
+
+def _dtype_name(component: int) -> Any:
+    from .gltf import COMPONENT_DTYPES
+
+    return COMPONENT_DTYPES[component]
