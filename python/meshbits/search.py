@@ -585,12 +585,18 @@ class Search:
         if target < MODEL_MIN_VERTICES or len(self.original[1]) > BASE_FACES:
             self.method = "meshopt"
             return self.method
-        fast = self._estimate(self.levels[self._simplified("fast-simplification", vertices=target)])
+        fast_level = self._simplified("fast-simplification", vertices=target)
+        if fast_level is None:
+            self.method = "meshopt"
+            return self.method
+        fast = self._estimate(self.levels[fast_level])
         # meshoptimizer with the vertices it strays from beyond fast-simplification's error
         # locked: what its levels will be.
-        meshopt = self._estimate(
-            self.levels[self._simplified("meshopt", vertices=target, aim=fast)]
-        )
+        meshopt_level = self._simplified("meshopt", vertices=target, aim=fast)
+        if meshopt_level is None:
+            self.method = "fast-simplification"
+            return self.method
+        meshopt = self._estimate(self.levels[meshopt_level])
         self.simplifier_estimates = {"meshopt": meshopt, "fast-simplification": fast}
         self.method = "fast-simplification" if fast < AUTO_MARGIN * meshopt else "meshopt"
         return self.method
@@ -602,9 +608,10 @@ class Search:
         vertices: float | None = None,
         tau: float | None = None,
         aim: float | None = None,
-    ) -> int:
+    ) -> int | None:
         """The level a simplifier makes for a vertex target or (meshopt) an error target
-        ``tau``: a built one within 3%, or a new one. For meshopt, original vertices left
+        ``tau``: a built one within 3%, or a new one; None when nothing of the mesh is left
+        (an error target as large as the mesh). For meshopt, original vertices left
         farther than ``aim`` from the level are locked and it is simplified again."""
         if vertices is not None:
             vertices = int(max(MODEL_MIN_VERTICES, min(round(vertices), self.available)))
@@ -629,6 +636,9 @@ class Search:
             result, locked, attributes = _simplify_locking(
                 self.original, method, target, locks_at, self.strays, self.attributes
             )
+            if len(result.faces) == 0:
+                self.seconds["simplify"] += time.perf_counter() - begin
+                return None
             level = Level(
                 "meshopt" if tau is not None else "vertices",
                 result.vertices,
@@ -676,6 +686,8 @@ class Search:
                 vertices = _interpolate(inverse, 1.0 / tessellation, guess * tessellation)
                 vertices = _stepped(vertices, known, tessellation, finer_is_smaller=False)
                 index = self._simplified(method, vertices=vertices)
+            if index is None:
+                break
             t = self.tessellation(self.levels[index])
             parameter = self.levels[index].parameter
             plateau = any(
@@ -900,7 +912,7 @@ class Search:
             if vertices < MODEL_MIN_VERTICES:
                 break
             index = self._simplified(method, vertices=vertices)
-            if index == 0:
+            if index is None or index == 0:
                 break
             size = self._encoded(index, bits).size_bits
             count = self.levels[index].vertex_count
@@ -955,7 +967,7 @@ class Search:
         elif target >= self.available:
             index = 0
         else:
-            index = self._simplified(self.simplifier_method(), vertices=target)
+            index = self._simplified(self.simplifier_method(), vertices=target) or 0
         return self._candidate(index, bits)
 
     def _fallback(self) -> _Candidate:
@@ -964,9 +976,10 @@ class Search:
         if self.constraint == "error":
             fitting = self._error_bits()
             return self._candidate(0, fitting[0] if len(fitting) else self.max_bits)
+        index = None
         if self._can_simplify():
             index = self._simplified(self.simplifier_method(), vertices=MODEL_MIN_VERTICES)
-        else:
+        if index is None:
             index = min(range(len(self.levels)), key=lambda i: self.levels[i].vertex_count)
         return self._candidate(index, int(MODEL_MIN_BITS))
 
@@ -1074,7 +1087,7 @@ def _simplify_locking(
     def named(result: Any) -> dict[str, np.ndarray] | None:
         return None if attributes is None else attributes.split(result.attributes, layout)
 
-    if not use_locks:
+    if not use_locks or len(result.faces) == 0:
         return result, 0, named(result)
     used = np.unique(source[1])
     for _ in range(LOCK_ROUNDS):

@@ -1,0 +1,547 @@
+"""Scenes in and out: glTF documents built here (a node hierarchy with scales, an instanced
+mesh, a textured material, UV seams, vertex colours, a skinned primitive with an
+animation), OBJ with MTL and PLY with colours, compressed with Draco and meshopt and read
+back independently (pygltflib, trimesh, DracoPy, the meshopt package)."""
+
+from __future__ import annotations
+
+import json
+import struct
+import warnings
+import zlib
+from pathlib import Path
+
+import DracoPy
+import numpy as np
+import pygltflib
+import pytest
+import trimesh
+
+import meshbits
+from meshbits.cli import main
+from meshbits.gltf import load_document
+from meshbits.scene import compress_scene, normal_bits, uv_bits
+
+WORLD_ERROR = 0.01
+
+
+# --- building scenes ----------------------------------------------------------------------
+
+
+def _png(width: int, height: int) -> bytes:
+    """A checkerboard PNG, written without an imaging library."""
+    rows = b"".join(
+        b"\0" + bytes(((x // 8 + y // 8) % 2) * 255 for x in range(width)) for y in range(height)
+    )
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (
+            struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+        )
+
+    header = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", header)
+        + chunk(b"IDAT", zlib.compress(rows))
+        + chunk(b"IEND", b"")
+    )
+
+
+def uv_sphere(
+    rows: int = 48, cols: int = 96
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A bumpy UV sphere whose seam (longitude 0) is split: positions twice, u = 0 and 1."""
+    theta = np.linspace(0.05, np.pi - 0.05, rows)
+    phi = np.linspace(0, 2 * np.pi, cols + 1)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    r = 1 + 0.05 * np.sin(5 * t) * np.cos(3 * p)
+    vertices = np.stack([r * np.sin(t) * np.cos(p), r * np.sin(t) * np.sin(p), r * np.cos(t)], -1)
+    vertices = vertices.reshape(-1, 3)
+    vertices[cols :: cols + 1] = vertices[:: cols + 1]
+    uv = np.stack([p / (2 * np.pi), t / np.pi], -1).reshape(-1, 2)
+    faces = []
+    for i in range(rows - 1):
+        for j in range(cols):
+            a, b = i * (cols + 1) + j, i * (cols + 1) + j + 1
+            faces += [[a, b, a + cols + 1], [b, b + cols + 1, a + cols + 1]]
+    faces = np.array(faces)
+    normals = trimesh.Trimesh(vertices, faces, process=False).vertex_normals
+    return vertices, faces, uv, normals
+
+
+class _Builder:
+    """A glTF document and its binary buffer, built accessor by accessor."""
+
+    def __init__(self) -> None:
+        self.doc: dict = {
+            "asset": {"version": "2.0", "generator": "meshbits tests", "extras": {"kept": True}},
+            "buffers": [],
+            "bufferViews": [],
+            "accessors": [],
+        }
+        self.blob = bytearray()
+
+    def view(self, data: bytes, target: int | None = None) -> int:
+        self.blob += b"\0" * ((-len(self.blob)) % 4)
+        view = {"buffer": 0, "byteOffset": len(self.blob), "byteLength": len(data)}
+        if target:
+            view["target"] = target
+        self.blob += data
+        self.doc["bufferViews"].append(view)
+        return len(self.doc["bufferViews"]) - 1
+
+    def accessor(
+        self,
+        values: np.ndarray,
+        kind: str,
+        *,
+        target: int | None = 34962,
+        normalized=False,
+        bounds=False,
+    ) -> int:
+        component = {np.float32: 5126, np.uint16: 5123, np.uint32: 5125, np.uint8: 5121}[
+            values.dtype.type
+        ]
+        spec = {
+            "bufferView": self.view(values.tobytes(), target),
+            "componentType": component,
+            "count": len(values),
+            "type": kind,
+        }
+        if normalized:
+            spec["normalized"] = True
+        if bounds:
+            spec["min"] = values.min(axis=0).tolist()
+            spec["max"] = values.max(axis=0).tolist()
+        self.doc["accessors"].append(spec)
+        return len(self.doc["accessors"]) - 1
+
+    def write(self, path: Path) -> Path:
+        """A GLB file: header, JSON chunk, binary chunk (glTF 2.0, Sec. 4.4)."""
+        self.blob += b"\0" * ((-len(self.blob)) % 4)
+        self.doc["buffers"] = [{"byteLength": len(self.blob)}]
+        text = json.dumps(self.doc).encode()
+        text += b" " * ((-len(text)) % 4)
+        total = 12 + 8 + len(text) + 8 + len(self.blob)
+        path.write_bytes(
+            struct.pack("<4sII", b"glTF", 2, total)
+            + struct.pack("<I4s", len(text), b"JSON")
+            + text
+            + struct.pack("<I4s", len(self.blob), b"BIN\0")
+            + bytes(self.blob)
+        )
+        return path
+
+
+def build_scene(path: Path) -> tuple[Path, dict]:
+    """The test scene; returns its path and what was put in it."""
+    b = _Builder()
+    image = _png(128, 64)
+    b.doc["images"] = [{"bufferView": b.view(image), "mimeType": "image/png", "name": "checker"}]
+    b.doc["samplers"] = [{"magFilter": 9729, "minFilter": 9987}]
+    b.doc["textures"] = [{"source": 0, "sampler": 0}]
+    b.doc["materials"] = [
+        {"name": "textured", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+        {
+            "name": "painted",
+            "pbrMetallicRoughness": {"baseColorFactor": [1, 0.5, 0.2, 1]},
+            "extras": {"x": 1},
+        },
+    ]
+    v, f, uv, n = uv_sphere()
+    sphere = {
+        "name": "sphere",
+        "primitives": [
+            {
+                "attributes": {
+                    "POSITION": b.accessor(v.astype(np.float32), "VEC3", bounds=True),
+                    "NORMAL": b.accessor(n.astype(np.float32), "VEC3"),
+                    "TEXCOORD_0": b.accessor(uv.astype(np.float32), "VEC2"),
+                },
+                "indices": b.accessor(f.astype(np.uint32).reshape(-1), "SCALAR", target=34963),
+                "material": 0,
+            }
+        ],
+    }
+    blob = trimesh.creation.icosphere(subdivisions=4)
+    rng = np.random.default_rng(1)
+    bv = (blob.vertices * (1 + 0.03 * rng.random((len(blob.vertices), 1)))).astype(np.float32)
+    colors = np.hstack([np.abs(blob.vertices), np.ones((len(bv), 1))])
+    bumpy = {
+        "name": "bumpy",
+        "primitives": [
+            {
+                "attributes": {
+                    "POSITION": b.accessor(bv, "VEC3", bounds=True),
+                    "COLOR_0": b.accessor((colors * 255).astype(np.uint8), "VEC4", normalized=True),
+                },
+                "indices": b.accessor(
+                    blob.faces.astype(np.uint32).reshape(-1), "SCALAR", target=34963
+                ),
+                "material": 1,
+            }
+        ],
+    }
+    # A skinned cylinder: two joints, weights blending along its height.
+    tube = trimesh.creation.cylinder(radius=0.2, height=2, sections=32)
+    tube = tube.subdivide().subdivide()
+    tv = tube.vertices.astype(np.float32)
+    height = (tv[:, 2] + 1) / 2
+    joints = np.zeros((len(tv), 4), dtype=np.uint16)
+    joints[:, 1] = 1
+    weights = np.zeros((len(tv), 4), dtype=np.float32)
+    weights[:, 0], weights[:, 1] = 1 - height, height
+    skinned = {
+        "name": "tube",
+        "primitives": [
+            {
+                "attributes": {
+                    "POSITION": b.accessor(tv, "VEC3", bounds=True),
+                    "JOINTS_0": b.accessor(joints, "VEC4"),
+                    "WEIGHTS_0": b.accessor(weights, "VEC4"),
+                },
+                "indices": b.accessor(
+                    tube.faces.astype(np.uint32).reshape(-1), "SCALAR", target=34963
+                ),
+            }
+        ],
+    }
+    b.doc["meshes"] = [sphere, bumpy, skinned]
+    inverse_bind = np.stack([np.eye(4), np.eye(4)]).astype(np.float32)
+    inverse_bind[1, 3, 2] = -1.0  # column-major: translation of the second joint
+    ibm = b.accessor(inverse_bind.reshape(2, 16), "MAT4", target=None)
+    b.doc["skins"] = [{"joints": [6, 7], "inverseBindMatrices": ibm}]
+    times = np.array([[0.0], [1.0]], dtype=np.float32)
+    moves = np.array([[0, 0, 1], [0, 0.5, 1]], dtype=np.float32)
+    b.doc["animations"] = [
+        {
+            "samplers": [
+                {
+                    "input": b.accessor(times, "SCALAR", target=None, bounds=True),
+                    "output": b.accessor(moves, "VEC3", target=None),
+                }
+            ],
+            "channels": [{"sampler": 0, "target": {"node": 7, "path": "translation"}}],
+        }
+    ]
+    b.doc["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}]
+    b.doc["nodes"] = [
+        {"name": "root", "scale": [2, 2, 2], "children": [1, 2, 3, 5]},
+        {"name": "sphere", "mesh": 0, "translation": [3, 0, 0]},
+        {"name": "bumpy", "mesh": 1, "rotation": [0, 0.7071068, 0, 0.7071068]},
+        {
+            "name": "small sphere",
+            "mesh": 0,
+            "translation": [-3, 0, 0],
+            "scale": [0.5, 0.5, 0.5],
+            "children": [4],
+        },
+        {"name": "camera", "camera": 0, "translation": [0, 0, 10]},
+        {"name": "tube", "mesh": 2, "skin": 0},
+        {"name": "joint0", "children": [7]},
+        {"name": "joint1", "translation": [0, 0, 1]},
+    ]
+    b.doc["scenes"] = [{"nodes": [0, 6], "name": "main"}]
+    b.doc["scene"] = 0
+    return b.write(path), {
+        "image": image,
+        "vertices": {0: v, 1: bv, 2: tv},
+        "faces": {0: f, 1: blob.faces, 2: tube.faces},
+    }
+
+
+@pytest.fixture(scope="module")
+def scene_file(tmp_path_factory) -> tuple[Path, dict]:
+    return build_scene(tmp_path_factory.mktemp("scene") / "scene.glb")
+
+
+# --- reading outputs back, without meshbits ------------------------------------------------
+
+
+def _accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
+    spec = doc["accessors"][index]
+    dtype = {
+        5120: np.int8,
+        5121: np.uint8,
+        5122: np.int16,
+        5123: np.uint16,
+        5125: np.uint32,
+        5126: np.float32,
+    }[spec["componentType"]]
+    width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}[spec["type"]]
+    view = doc["bufferViews"][spec["bufferView"]]
+    ext = (view.get("extensions") or {}).get("EXT_meshopt_compression")
+    if ext:
+        import meshopt
+
+        data = blob[ext["byteOffset"] : ext["byteOffset"] + ext["byteLength"]]
+        if ext["mode"] == "TRIANGLES":
+            return np.asarray(
+                meshopt.decode_gltf_buffer(data, ext["count"], ext["byteStride"], "TRIANGLES")
+            ).reshape(-1, 1)
+        rows = np.asarray(
+            meshopt.decode_gltf_buffer(
+                data, ext["count"], ext["byteStride"], "ATTRIBUTES", ext.get("filter", "NONE")
+            )
+        )
+        values = np.frombuffer(rows.tobytes(), dtype=dtype).reshape(ext["count"], -1)[:, :width]
+    else:
+        start = view.get("byteOffset", 0) + spec.get("byteOffset", 0)
+        stride = view.get("byteStride") or np.dtype(dtype).itemsize * width
+        raw = np.frombuffer(blob, dtype=np.uint8, count=stride * spec["count"], offset=start)
+        values = (
+            raw.reshape(spec["count"], stride)[:, : np.dtype(dtype).itemsize * width]
+            .copy()
+            .view(dtype)
+            .reshape(spec["count"], width)
+        )
+    if spec.get("normalized"):
+        scale = {np.int8: 127, np.uint8: 255, np.int16: 32767, np.uint16: 65535}[dtype]
+        return np.maximum(values / scale, -1.0)
+    return values.astype(np.float64) if dtype == np.float32 else values
+
+
+def decode_primitive(doc: dict, blob: bytes, prim: dict) -> dict[str, np.ndarray]:
+    """A primitive's attributes and ``indices``, decoded with DracoPy or the meshopt
+    package."""
+    draco = (prim.get("extensions") or {}).get("KHR_draco_mesh_compression")
+    if draco:
+        view = doc["bufferViews"][draco["bufferView"]]
+        mesh = DracoPy.decode(
+            blob[view.get("byteOffset", 0) : view.get("byteOffset", 0) + view["byteLength"]]
+        )
+        by_id = {a["unique_id"]: np.asarray(a["data"]) for a in mesh.attributes}
+        out = {name: by_id[i] for name, i in draco["attributes"].items()}
+        for name, values in list(out.items()):
+            spec = doc["accessors"][prim["attributes"][name]]
+            assert spec["count"] == len(values)
+            if spec.get("normalized"):
+                out[name] = values / 255.0
+        out["indices"] = np.asarray(mesh.faces).reshape(-1, 3)
+        return out
+    out = {name: _accessor(doc, blob, i) for name, i in prim["attributes"].items()}
+    out["indices"] = _accessor(doc, blob, prim["indices"]).reshape(-1, 3)
+    return out
+
+
+def read_glb(path: Path) -> tuple[dict, bytes]:
+    """The document and binary chunk, read by pygltflib (whose dataclass decoding warns
+    about optional fields left out, as glTF allows)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        gltf = pygltflib.GLTF2().load(str(path))
+        return json.loads(gltf.to_json()), gltf.binary_blob() or b""
+
+
+def world_matrices(doc: dict) -> dict[int, list[np.ndarray]]:
+    """mesh -> world matrices of its nodes, with numpy only."""
+
+    def local(node: dict) -> np.ndarray:
+        if "matrix" in node:
+            return np.asarray(node["matrix"]).reshape(4, 4).T
+        x, y, z, w = node.get("rotation", [0, 0, 0, 1])
+        r = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        m = np.eye(4)
+        m[:3, :3] = r * np.asarray(node.get("scale", [1, 1, 1]))
+        m[:3, 3] = node.get("translation", [0, 0, 0])
+        return m
+
+    out: dict[int, list[np.ndarray]] = {}
+    stack = [(n, np.eye(4)) for n in doc["scenes"][0]["nodes"]]
+    while stack:
+        index, parent = stack.pop()
+        node = doc["nodes"][index]
+        world = parent @ local(node)
+        if "mesh" in node:
+            out.setdefault(node["mesh"], []).append(world)
+        stack += [(c, world) for c in node.get("children", [])]
+    return out
+
+
+# --- tests ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("codec", ["draco", "meshopt"])
+def test_a_scene_round_trips_with_everything_kept(scene_file, tmp_path, codec):
+    if codec == "meshopt":
+        pytest.importorskip("meshopt")
+    path, built = scene_file
+    out = tmp_path / f"out_{codec}.glb"
+    result = compress_scene(path, error=WORLD_ERROR, codec=codec, output=out)
+    source, _ = read_glb(path)
+    doc, blob = read_glb(out)
+    for kind in (
+        "meshes",
+        "materials",
+        "images",
+        "textures",
+        "samplers",
+        "skins",
+        "animations",
+        "cameras",
+        "scenes",
+    ):
+        assert len(doc.get(kind, [])) == len(source[kind]), kind
+    assert doc["asset"]["extras"] == {"kept": True}
+    assert doc["materials"][1]["extras"] == {"x": 1}
+    image_view = doc["bufferViews"][doc["images"][0]["bufferView"]]
+    start = image_view.get("byteOffset", 0)
+    assert blob[start : start + image_view["byteLength"]] == built["image"]
+    assert doc["skins"][0]["joints"] == [6, 7] or codec == "meshopt"
+    required = {
+        "draco": {"KHR_draco_mesh_compression"},
+        "meshopt": {"EXT_meshopt_compression", "KHR_mesh_quantization"},
+    }[codec]
+    assert required <= set(doc["extensionsRequired"])
+    # Every attribute is still there, and decodes.
+    worlds = world_matrices(doc)
+    source_worlds = world_matrices(source)
+    for m, mesh in enumerate(doc["meshes"]):
+        prim = mesh["primitives"][0]
+        assert set(prim["attributes"]) == set(source["meshes"][m]["primitives"][0]["attributes"])
+        decoded = decode_primitive(doc, blob, prim)
+        positions = decoded["POSITION"].astype(np.float64)
+        if m == 2:  # skinned: checked in its own test
+            continue
+        # World-space error of every instance, measured against the original's instance.
+        for world, source_world in zip(worlds[m], source_worlds[m], strict=True):
+            ours = positions @ world[:3, :3].T + world[:3, 3]
+            theirs = built["vertices"][m] @ source_world[:3, :3].T + source_world[:3, 3]
+            distance = meshbits.hausdorff(
+                (theirs, built["faces"][m]), (ours, decoded["indices"]), samples=100_000
+            ).distance
+            assert distance <= WORLD_ERROR * 1.05, (m, distance)
+    reports = {r.mesh: r for r in result.primitives}
+    assert reports[0].instances == 2 and reports[0].scale == pytest.approx(2.0)
+    assert all(r.met for r in result.primitives) and result.met
+    assert result.size_bytes == out.stat().st_size
+    assert trimesh.load(out) is not None if codec == "draco" else True
+
+
+def test_uv_seams_are_kept(scene_file, tmp_path):
+    path, _ = scene_file
+    out = tmp_path / "seams.glb"
+    compress_scene(path, error=WORLD_ERROR, output=out)
+    doc, blob = read_glb(out)
+    decoded = decode_primitive(doc, blob, doc["meshes"][0]["primitives"][0])
+    positions, uv = decoded["POSITION"], decoded["TEXCOORD_0"]
+    on_seam = (np.abs(positions[:, 1]) < 1e-3) & (positions[:, 0] > 0)
+    assert on_seam.sum() >= 4
+    assert uv[on_seam, 0].min() < 0.01 and uv[on_seam, 0].max() > 0.99
+    # No triangle spans the seam in UV space.
+    spans = np.ptp(uv[decoded["indices"]][:, :, 0], axis=1)
+    assert spans.max() < 0.5
+
+
+def test_the_skin_is_kept_and_its_weights_still_sum_to_one(scene_file, tmp_path):
+    path, built = scene_file
+    for codec in ("draco", "meshopt"):
+        if codec == "meshopt" and pytest.importorskip("meshopt") is None:
+            continue
+        out = tmp_path / f"skin_{codec}.glb"
+        compress_scene(path, error=WORLD_ERROR, codec=codec, output=out)
+        doc, blob = read_glb(out)
+        decoded = decode_primitive(doc, blob, doc["meshes"][2]["primitives"][0])
+        assert set(np.unique(decoded["JOINTS_0"])) <= {0, 1}
+        np.testing.assert_allclose(decoded["WEIGHTS_0"].sum(axis=1), 1.0, atol=2 / 255)
+        assert doc["nodes"][5]["skin"] == 0 and doc["skins"][0]["joints"] == [6, 7]
+        # The skinned mesh's positions are in bind space: no dequantization on its node.
+        positions = decoded["POSITION"].astype(np.float64)
+        distance = meshbits.hausdorff(
+            (built["vertices"][2], built["faces"][2]), (positions, decoded["indices"])
+        ).distance
+        assert distance <= WORLD_ERROR * 1.05
+
+
+def test_a_size_budget_is_split_across_the_scene(scene_file, tmp_path):
+    path, _ = scene_file
+    out = tmp_path / "sized.glb"
+    result = compress_scene(path, size=8 * 40_000, output=out)
+    assert result.met and out.stat().st_size <= 40_000
+    errors = [r.world_error for r in result.primitives]
+    assert max(errors) == result.world_error > 0
+
+
+def test_attribute_bits_follow_their_tolerance():
+    _, _, uv, n = uv_sphere()
+    # Half a texel: (2^B - 1) >= extent x texels.
+    assert uv_bits(uv, 128) == 8 and uv_bits(uv, 4095) == 12 and uv_bits(uv, 4096) == 13
+    assert uv_bits(uv, None) == 12
+    assert normal_bits(n, 1.0) <= 8 < normal_bits(n, 0.1)
+
+
+def test_obj_with_mtl_and_texture_comes_out_textured(tmp_path):
+    v, f, uv, _ = uv_sphere(24, 48)
+    png = _png(64, 64)
+    (tmp_path / "checker.png").write_bytes(png)
+    (tmp_path / "ball.mtl").write_text("newmtl skin\nmap_Kd checker.png\n")
+    lines = ["mtllib ball.mtl", "usemtl skin"]
+    lines += [f"v {x} {y} {z}" for x, y, z in v]
+    lines += [f"vt {a} {b}" for a, b in uv]
+    lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in f]
+    (tmp_path / "ball.obj").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "ball.glb"
+    result = compress_scene(tmp_path / "ball.obj", error=0.01, relative=True, output=out)
+    assert result.met
+    doc, blob = read_glb(out)
+    assert len(doc["images"]) == 1
+    prim = doc["meshes"][0]["primitives"][0]
+    assert "TEXCOORD_0" in prim["attributes"] and prim.get("material") is not None
+    decoded = decode_primitive(doc, blob, prim)
+    assert np.ptp(decoded["TEXCOORD_0"][:, 0]) > 0.9
+
+
+def test_ply_colours_survive(tmp_path):
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    sphere.visual.vertex_colors = (np.abs(sphere.vertices) * 255).astype(np.uint8)
+    path = tmp_path / "coloured.ply"
+    sphere.export(path)
+    out = tmp_path / "coloured.glb"
+    compress_scene(path, error=0.01, relative=True, output=out)
+    doc, blob = read_glb(out)
+    decoded = decode_primitive(doc, blob, doc["meshes"][0]["primitives"][0])
+    assert "COLOR_0" in decoded and decoded["COLOR_0"].max() > 0.5
+
+
+def test_gltf_output_with_its_buffer_named_after_it(scene_file, tmp_path):
+    path, _ = scene_file
+    out = tmp_path / "scene.gltf"
+    result = compress_scene(path, error=WORLD_ERROR, output=out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.bin", "scene.gltf"]
+    doc = json.loads(out.read_text())
+    assert doc["buffers"][0]["uri"] == "scene.bin"
+    assert load_document(out).json["meshes"] and len(result.files) == 2
+
+
+def test_cli_compress_and_info_on_a_scene(scene_file, tmp_path, capsys):
+    path, _ = scene_file
+    out = tmp_path / "cli.glb"
+    argv = [
+        "compress",
+        str(path),
+        "--error",
+        str(WORLD_ERROR),
+        "-o",
+        str(out),
+        "--codec",
+        "draco",
+        "--json",
+        "--quiet",
+    ]
+    assert main(argv) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["met"] and len(report["primitives"]) == 3
+    for row in report["primitives"]:
+        assert {"bits", "vertices", "bytes", "world_error", "met"} <= set(row)
+    assert main(["info", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["extensions_used"] == ["KHR_draco_mesh_compression"]
+    assert info["images"][0]["size"] == [128, 64]
+    assert main(["compress", str(path), "--vertices", "100", "-o", str(out)]) == 2
