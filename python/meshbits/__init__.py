@@ -38,6 +38,7 @@ from .quantize import (
     precision_bits,
     quantize,
 )
+from .scene import SceneResult, compress_scene
 from .simplify import Simplified, simplify
 from .threads import get_num_threads, set_num_threads, threads
 
@@ -55,12 +56,14 @@ __all__ = [
     "MeshbitsError",
     "Quantized",
     "Reference",
+    "SceneResult",
     "ShapeComplexity",
     "Simplified",
     "SurfaceSamples",
     "__version__",
     "cluster",
     "compress",
+    "compress_scene",
     "cube_grid",
     "dequantize",
     "example_mesh_path",
