@@ -545,3 +545,10 @@ def test_cli_compress_and_info_on_a_scene(scene_file, tmp_path, capsys):
     assert info["extensions_used"] == ["KHR_draco_mesh_compression"]
     assert info["images"][0]["size"] == [128, 64]
     assert main(["compress", str(path), "--vertices", "100", "-o", str(out)]) == 2
+    capsys.readouterr()
+    # --error with a unit: glTF lengths are meters.
+    assert (
+        main(["compress", str(path), "--error", "10mm", "-o", str(out), "--json", "--quiet"]) == 0
+    )
+    assert json.loads(capsys.readouterr().out)["budget"] == pytest.approx(0.01)
+    assert main(["compress", str(path), "--error", "-1mm", "-o", str(out)]) == 2

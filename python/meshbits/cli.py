@@ -67,6 +67,27 @@ def _positive_number(text: str) -> float:
     return value
 
 
+#: Length units of ``--error``, in meters (glTF's unit).
+_LENGTH_UNITS = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0, "km": 1e3, "in": 0.0254, "ft": 0.3048}
+
+
+def _length(text: str) -> float:
+    """An argparse type: a positive length, plain (the file's units) or with a unit
+    (meters, glTF's unit: 1mm = 0.001)."""
+    stripped = text.strip()
+    for unit in sorted(_LENGTH_UNITS, key=len, reverse=True):
+        if stripped.lower().endswith(unit) and stripped[: -len(unit)].strip():
+            number = stripped[: -len(unit)].strip()
+            try:
+                value = float(number) * _LENGTH_UNITS[unit]
+            except ValueError:
+                break
+            if math.isfinite(value) and value > 0:
+                return value
+            raise argparse.ArgumentTypeError(f"must be a positive finite length, got {text!r}")
+    return _positive_number(text)
+
+
 def _count(smallest: int) -> Callable[[str], int]:
     """An argparse type: a whole number of at least ``smallest``."""
 
@@ -240,8 +261,9 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
     )
     budget.add_argument(
         "--error",
-        type=_positive_number,
-        help="Hausdorff error budget, in mesh units (a fraction of S with --relative)",
+        type=_length,
+        help="Hausdorff error budget: a length in the file's units (0.002), or with a unit "
+        "for files in meters, as glTF is (1mm, 0.5cm, 2in); a fraction of S with --relative",
     )
     budget.add_argument("--vertices", type=_count(4), help="vertex count V (at least 4)")
     p.add_argument(
@@ -312,7 +334,7 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
 
 
 def _budget_text(args: argparse.Namespace) -> str:
-    """The budget as the user typed it."""
+    """The budget as the user typed it (an error with a unit, in meters)."""
     if args.size is not None:
         return f"--size {args.size}"
     if args.error is not None:
