@@ -152,7 +152,7 @@ conn = st.floats(0.0, 8.0)
 log_errors = st.floats(-8.0, -1.0)
 
 
-# --- reference numbers (MODEL.md) --------------------------------------------------------
+# --- reference numbers (docs/model.md) ---------------------------------------------------
 
 
 @pytest.mark.parametrize(

@@ -8,7 +8,7 @@ Units: sizes in bits, errors in the length unit of the grid size ``S`` (the side
 quantization cube; every error function takes ``grid_size`` and scales by it, default 1 so
 errors are relative to ``S``), ``K`` dimensionless (grid-normalised, ``ShapeComplexity.k``).
 The derivation, with the paper's equation numbers and the places where its print is
-wrong, is in ``docs/model.md``; the reference numbers are in ``MODEL.md``.
+wrong, and the reference numbers, are in ``docs/model.md``.
 
 The error model (Eq. 2, 3, 7, 10, 11)::
 
