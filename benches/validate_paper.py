@@ -533,7 +533,7 @@ def run(quick: bool, out: Path) -> str:
     say(
         "Each mesh is simplified with `meshbits.simplify` (fast-simplification) to a "
         "ladder of V, each level quantized on the original's grid ([quantize.md]"
-        f"(quantize.md)) at B = {grid_bits[0]}..{grid_bits[-1]}, and measured against '
+        f"(quantize.md)) at B = {grid_bits[0]}..{grid_bits[-1]}, and measured against "
         "the original. The figure shows measured Emax (solid) and Emean (dotted) against "
         "B for each level, with the model E(B, V) (dashed) using K (circumsphere) of the "
         "full mesh.\n"
