@@ -18,6 +18,8 @@ whether the budget was met.
 
 from __future__ import annotations
 
+import math
+import numbers
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -351,15 +353,27 @@ def compress(
     if len(given) != 1:
         raise MeshbitsError(f"give exactly one of size, error, vertices (got {given or 'none'})")
     constraint = given[0]
+    if isinstance(max_iterations, bool) or not isinstance(max_iterations, numbers.Integral):
+        raise TypeError(f"max_iterations must be an integer, got {max_iterations!r}")
     if max_iterations < 1:
         raise MeshbitsError(f"max_iterations must be at least 1, got {max_iterations}")
     if format not in ("draco", "glb", "ply"):
         raise MeshbitsError(f"format must be 'draco', 'glb' or 'ply', got {format!r}")
-    budget = float({"size": size, "error": error, "vertices": vertices}[constraint])
-    if not np.isfinite(budget) or budget <= 0:
+    value = {"size": size, "error": error, "vertices": vertices}[constraint]
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"the {constraint} budget must be a real number, got {value!r}")
+    try:
+        budget = float(value)
+    except OverflowError:  # an int beyond the float range
+        budget = math.inf
+    if not math.isfinite(budget) or budget <= 0:
         raise MeshbitsError(
-            f"the {constraint} budget must be a positive finite number, got {budget}"
+            f"the {constraint} budget must be a positive finite number, got {value}"
         )
+    alpha = model._scalar(model._alpha(alpha), "alpha")
+    connectivity_bits = model._scalar(
+        model._nonnegative("connectivity_bits", connectivity_bits), "connectivity_bits"
+    )
     original = _weld(as_mesh(mesh))
     seconds = {"complexity": 0.0, "simplify": 0.0, "encode": 0.0, "hausdorff": 0.0}
 
@@ -482,7 +496,9 @@ def compress(
                 break
         else:
             failing = target if failing is None else min(failing, target)
-        ratio = budget / (decisive if constraint == "error" else encoded.size_bits)
+        measured_amount = decisive if constraint == "error" else encoded.size_bits
+        # An exact reproduction measures 0: any coarser output is worth a try.
+        ratio = budget / measured_amount if measured_amount > 0 else math.inf
         next_target = _next_target(target, ratio, passing, failing)
         if next_target is None or (constraint == "error" and next_target >= grid_size):
             break

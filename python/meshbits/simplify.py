@@ -8,6 +8,8 @@ the one whose vertex count is closest to the target.
 
 from __future__ import annotations
 
+import math
+import numbers
 import threading
 from collections.abc import Callable, Sequence
 
@@ -23,6 +25,13 @@ Simplifier = Callable[[np.ndarray, np.ndarray, int], tuple[np.ndarray, np.ndarra
 
 #: Values of fast-simplification's ``agg`` tried in turn when a lower one stops short.
 _ESCALATION = (3.0, 5.0, 7.0, 10.0)
+
+#: Most faces per referenced vertex fast-simplification is given (an ordinary surface has
+#: about 2). Its cost grows with the square of the faces around a vertex: Suzanne's faces
+#: turned into polygons of 16 consecutive vertices and fan-triangulated (27 faces per
+#: vertex) took 3 s in one call at agg = 10, polygons of 32 (57 per vertex) 30 s, and
+#: ``meshbits.compress`` on polygons of 255 (483 per vertex) ran for over 10 minutes.
+MAX_FACES_PER_VERTEX = 16
 
 # fast-simplification keeps the mesh it works on in native globals: two calls must not
 # overlap, so every call goes through this lock.
@@ -89,14 +98,34 @@ def simplify(
     faces : (m, 3) int64
     """
     vertices, faces = as_mesh(mesh)
+    if isinstance(target_vertices, bool) or not isinstance(target_vertices, numbers.Real):
+        raise TypeError(f"target_vertices must be a number, got {target_vertices!r}")
+    try:
+        finite = math.isfinite(target_vertices)
+    except OverflowError:  # an int beyond the float range
+        finite = False
+    if not finite:
+        raise MeshbitsError(f"target_vertices must be finite, got {target_vertices}")
     target_vertices = int(target_vertices)
     if target_vertices < 4:
         raise MeshbitsError(f"target_vertices must be at least 4, got {target_vertices}")
     used = referenced_vertex_count(faces)
-    if target_vertices >= used:
+    if target_vertices >= used or len(faces) < 2:
         return _compact(vertices, faces.astype(np.int64))
     ratio = len(faces) / used
-    target_faces = max(4, round(target_vertices * ratio))
+    if ratio > MAX_FACES_PER_VERTEX:
+        raise MeshbitsError(
+            f"the mesh has {len(faces):,} faces on {used:,} vertices, {ratio:.0f} per vertex "
+            f"(a surface has about 2; at most {MAX_FACES_PER_VERTEX} are simplified): "
+            "fast-simplification slows down with the square of that. Remove repeated or "
+            "overlapping faces first (polygons of many corners fan-triangulated?)"
+        )
+
+    def request(count: float) -> int:
+        # fast-simplification refuses a target of all the faces or more.
+        return int(min(max(4, round(count)), len(faces) - 1))
+
+    target_faces = request(target_vertices * ratio)
     # fast-simplification stops after a fixed number of sweeps whose collapse threshold
     # grows like (sweep + 3) ** agg: a low agg may stop short of the target. Escalate.
     for agg in [aggressiveness, *(a for a in _ESCALATION if a > aggressiveness)]:
@@ -105,7 +134,7 @@ def simplify(
             break
     got = len(out[0])
     if 0 < got < (1 - rtol) * target_vertices:
-        target_faces = max(4, round(target_faces * target_vertices / got))
+        target_faces = request(target_faces * target_vertices / got)
         out = _fast_simplification(vertices, faces, target_faces, agg, preserve_border)
     return out
 
