@@ -44,7 +44,13 @@ from .io import write_atomic
 from .mesh import MeshLike, as_mesh
 from .quantize import cube_grid, precision_bits
 from .results import ArrayResult
-from .simplify import Simplifier, closest_level, referenced_vertex_count, simplify
+from .simplify import (
+    Simplifier,
+    check_untangled,
+    closest_level,
+    referenced_vertex_count,
+    simplify,
+)
 
 __all__ = ["SLACK", "CompressResult", "Iteration", "compress"]
 
@@ -375,6 +381,10 @@ def compress(
         model._nonnegative("connectivity_bits", connectivity_bits), "connectivity_bits"
     )
     original = _weld(as_mesh(mesh))
+    available = referenced_vertex_count(original[1])
+    # A tangle (fan-triangulated polygons of hundreds of corners) takes fast-simplification
+    # and the Hausdorff BVH minutes to hours: one of 245k faces on 507 vertices, 3 minutes.
+    check_untangled(len(original[1]), available, "compressed")
     seconds = {"complexity": 0.0, "simplify": 0.0, "encode": 0.0, "hausdorff": 0.0}
 
     start = time.perf_counter()
@@ -388,7 +398,6 @@ def compress(
 
     if constraint == "error" and relative:
         budget *= grid_size
-    available = referenced_vertex_count(original[1])
     original_box = _box(original)
     max_bits = min(FORMAT_MAX_BITS[format], precision_bits(original[0], grid_size))
     simplify_to = simplifier or (lambda v, f, n: simplify((v, f), n))

@@ -18,7 +18,14 @@ import numpy as np
 from .errors import MeshbitsError
 from .mesh import MeshLike, as_mesh
 
-__all__ = ["Simplifier", "closest_level", "referenced_vertex_count", "simplify"]
+__all__ = [
+    "MAX_FACES_PER_VERTEX",
+    "Simplifier",
+    "check_untangled",
+    "closest_level",
+    "referenced_vertex_count",
+    "simplify",
+]
 
 #: ``simplifier(vertices (n, 3) float64, faces (m, 3) int, target_vertices) -> (vertices, faces)``
 Simplifier = Callable[[np.ndarray, np.ndarray, int], tuple[np.ndarray, np.ndarray]]
@@ -36,6 +43,19 @@ MAX_FACES_PER_VERTEX = 16
 # fast-simplification keeps the mesh it works on in native globals: two calls must not
 # overlap, so every call goes through this lock.
 _FAST_SIMPLIFICATION_LOCK = threading.Lock()
+
+
+def check_untangled(face_count: int, used: int, what: str) -> None:
+    """Refuse more than :data:`MAX_FACES_PER_VERTEX` faces per referenced vertex."""
+    ratio = face_count / max(used, 1)
+    if ratio > MAX_FACES_PER_VERTEX:
+        raise MeshbitsError(
+            f"the mesh has {face_count:,} faces on {used:,} vertices, {ratio:.0f} per vertex "
+            f"(a surface has about 2; at most {MAX_FACES_PER_VERTEX} are {what}): its "
+            "triangles overlap so much that simplifying or measuring it would take minutes "
+            "to hours. Remove repeated or overlapping faces first (polygons of many corners "
+            "fan-triangulated?)"
+        )
 
 
 def referenced_vertex_count(faces: np.ndarray) -> int:
@@ -112,14 +132,8 @@ def simplify(
     used = referenced_vertex_count(faces)
     if target_vertices >= used or len(faces) < 2:
         return _compact(vertices, faces.astype(np.int64))
+    check_untangled(len(faces), used, "simplified")
     ratio = len(faces) / used
-    if ratio > MAX_FACES_PER_VERTEX:
-        raise MeshbitsError(
-            f"the mesh has {len(faces):,} faces on {used:,} vertices, {ratio:.0f} per vertex "
-            f"(a surface has about 2; at most {MAX_FACES_PER_VERTEX} are simplified): "
-            "fast-simplification slows down with the square of that. Remove repeated or "
-            "overlapping faces first (polygons of many corners fan-triangulated?)"
-        )
 
     def request(count: float) -> int:
         # fast-simplification refuses a target of all the faces or more.
