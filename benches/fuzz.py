@@ -1621,6 +1621,21 @@ def _call_api(item: ApiInput) -> Any:
     return getattr(meshbits, item.func)(*args, **kwargs)
 
 
+def _reset_peak() -> None:
+    """Reset this process's peak RSS (Linux: 5 to /proc/self/clear_refs resets VmHWM)."""
+    with contextlib.suppress(OSError), open("/proc/self/clear_refs", "w") as handle:
+        handle.write("5")
+
+
+def _peak_mb() -> float:
+    """Peak RSS since the last :func:`_reset_peak` (VmHWM), in MB (ru_maxrss elsewhere)."""
+    with contextlib.suppress(OSError), open("/proc/self/status") as handle:
+        for line in handle:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def _worker(conn: Any, index: int, log: str) -> None:
     """Run inputs sent over ``conn``; for each step send ("start", target) then
     ("done", Outcome); after the input, ("end", peak RSS in MB)."""
@@ -1648,6 +1663,7 @@ def _worker(conn: Any, index: int, log: str) -> None:
         if task is None:
             break
         ident, item, plan = task
+        _reset_peak()
         folder = scratch / "run"
         shutil.rmtree(folder, ignore_errors=True)
         folder.mkdir()
@@ -1767,8 +1783,7 @@ def _worker(conn: Any, index: int, log: str) -> None:
                     ),
                 )
             )
-        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-        conn.send(("end", peak))
+        conn.send(("end", _peak_mb()))
     shutil.rmtree(scratch, ignore_errors=True)
 
 
@@ -1895,10 +1910,14 @@ class Ledger:
         self.failures: list[Outcome] = []
         self.messages: collections.Counter[tuple[str, str]] = collections.Counter()
         self.seconds: dict[str, float] = collections.defaultdict(float)
+        self.refusals = self.generic = 0
 
     def record(self, item: Any, outcome: Outcome) -> None:
         self.runs[outcome.kind][outcome.outcome] += 1
         self.seconds[outcome.kind] += outcome.seconds
+        if outcome.target == "load_mesh" and outcome.outcome == "MeshFileError":
+            self.refusals += 1
+            self.generic += "reader failed (" in outcome.message
         if outcome.message:
             generic = re.sub(r"/\S*/run/", "", outcome.message)
             generic = re.sub(r"\d+(\.\d+)?(e[-+]?\d+)?", "N", generic)
@@ -1996,7 +2015,8 @@ def huge_cases(
 ) -> list[tuple[str, bytes, str]]:
     v, f = meshes["tetra"]
     cases = [
-        ("baseline: valid tetrahedron PLY", ply_bytes(v, f, fmt="binary_little_endian"), "m.ply")
+        ("baseline: valid tetrahedron PLY", ply_bytes(v, f, fmt="binary_little_endian"), "m.ply"),
+        ("baseline: valid bunny.ply (35k vertices)", (DATA / "bunny.ply").read_bytes(), "m.ply"),
     ]
     for count in (2**31, 2**32 - 1, 10**12, 2**63 - 1):
         for fmt in ("ascii", "binary_little_endian"):
@@ -2016,7 +2036,7 @@ def huge_cases(
     cases.append(
         (
             "PLY ascii, list count 10**12",
-            ply_bytes(v, [[0, 1, 2]] * 3 + [[10**12 - 3, 0, 1, 2]]),
+            ply_bytes(v, f).replace(b"\n3 1 2 3\n", b"\n1000000000000 1 2 3\n"),
             "m.ply",
         )
     )
@@ -2063,42 +2083,44 @@ def _limit_memory() -> None:
 
 
 def measure_huge(cases: list[tuple[str, bytes, str]], timeout: float) -> list[dict[str, Any]]:
-    """Each case read by ``meshbits k`` in its own process: exit code, seconds, peak RSS
-    (``wait4``), the line on stderr."""
+    """Each case read by ``meshbits k`` in its own process: exit code, seconds, peak RSS,
+    the line on stderr.
+
+    The peak is GNU time's "maximum resident set size" (``/usr/bin/time -f %M``): time is
+    a small process, and Linux starts a child's ``ru_maxrss`` at its parent's RSS, so a
+    ``wait4`` from this (large) process would report this process's size instead.
+    """
     script = console_script()
+    timer = "/usr/bin/time"
+    if not Path(timer).exists():
+        raise SystemExit("the huge-count cases need GNU time (/usr/bin/time); use --no-huge")
     rows = []
     scratch = Path(tempfile.mkdtemp(prefix="meshbits-fuzz-huge-"))
     for label, data, name in cases:
         path = scratch / name
         path.write_bytes(data)
-        with open(scratch / "stderr", "w+b") as err, open(os.devnull, "wb") as null:
-            start = time.perf_counter()
-            process = subprocess.Popen(
-                [script, "k", str(path)], stdout=null, stderr=err, preexec_fn=_limit_memory
+        argv = [timer, "-f", "%M", "-o", str(scratch / "rss"), script, "k", str(path)]
+        start = time.perf_counter()
+        try:
+            done = subprocess.run(
+                argv,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                timeout=timeout,
+                preexec_fn=_limit_memory,
             )
-            deadline = start + timeout
-            status, usage = None, None
-            while time.perf_counter() < deadline:
-                pid, status, usage = os.wait4(process.pid, os.WNOHANG)
-                if pid:
-                    break
-                time.sleep(0.01)
-            else:
-                process.kill()
-                _, status, usage = os.wait4(process.pid, 0)
-                status = None
-            seconds = time.perf_counter() - start
-            process.returncode = 0  # reaped by wait4
-            err.seek(0)
-            text = err.read().decode("utf-8", "replace").strip()
-        code = os.waitstatus_to_exitcode(status) if status is not None else "timeout"
+            code: Any = done.returncode
+            text = done.stderr.decode("utf-8", "replace").strip()
+            peak = int((scratch / "rss").read_text().split()[-1]) / 1024
+        except subprocess.TimeoutExpired:
+            code, text, peak = "timeout", "", float("nan")
         rows.append(
             {
                 "case": label,
                 "bytes": len(data),
                 "exit": code,
-                "seconds": round(seconds, 2),
-                "peak_rss_mb": round(usage.ru_maxrss / 1024, 1),
+                "seconds": round(time.perf_counter() - start, 2),
+                "peak_rss_mb": round(peak, 1),
                 "stderr": text.splitlines()[0][:160] if text else "",
                 "stderr_lines": len(text.splitlines()),
             }
@@ -2223,10 +2245,9 @@ def main() -> int:
 
     # --- report ---
     failures_by_kind = collections.Counter(f.kind for f in ledger.failures)
-    header = f"{'kind':<26} {'inputs':>6} {'runs':>6} {'failed':>6}  outcomes"
-    print()
-    print(header)
-    print("-" * len(header))
+    lines = []
+    header = f"{'kind':<24} {'inputs':>6} {'runs':>6} {'failed':>6} {'peak MB':>7}  outcomes"
+    lines += [header, "-" * len(header)]
     total_inputs = total_runs = 0
     for kind in inputs:
         runs = ledger.runs[kind]
@@ -2235,46 +2256,53 @@ def main() -> int:
         text = ", ".join(
             f"{name} {count}" for name, count in sorted(runs.items(), key=lambda kv: -kv[1])
         )
-        print(
-            f"{kind:<26} {ledger.inputs[kind]:>6} {sum(runs.values()):>6} "
-            f"{failures_by_kind[kind]:>6}  {text}"
+        lines.append(
+            f"{kind:<24} {ledger.inputs[kind]:>6} {sum(runs.values()):>6} "
+            f"{failures_by_kind[kind]:>6} {pool.peak_rss.get(kind, 0):>7.0f}  {text}"
         )
-    print("-" * len(header))
-    print(f"{'total':<26} {total_inputs:>6} {total_runs:>6} {len(ledger.failures):>6}")
-    print(
-        f"in-process runs took {in_process:.0f} s on {args.workers} workers; "
-        f"{restarts} worker restarts"
+    lines.append("-" * len(header))
+    lines.append(f"{'total':<24} {total_inputs:>6} {total_runs:>6} {len(ledger.failures):>6}")
+    lines.append(
+        f"in-process runs: {in_process:.0f} s on {args.workers} workers, {restarts} worker "
+        "restarts; peak MB: largest peak RSS of a worker during one input of the kind"
+    )
+    lines.append(
+        f"load_mesh refusals: {ledger.refusals}, of which {ledger.generic} fell back to the "
+        "parser's own words ('the X reader failed (...): the file is damaged or ...')"
     )
     if sample_outcomes:
         text = ", ".join(f"{k} {v}" for k, v in sorted(sample_outcomes.items()))
-        print(
+        lines.append(
             f"console script sample: {sum(sample_outcomes.values())} files: {text}; "
             f"{len(sample_failures)} failures"
         )
     if huge:
-        print()
-        print(
+        lines.append("")
+        lines.append(
             f"{'huge-count case (meshbits k)':<44} {'bytes':>9} {'exit':>4} {'s':>6} "
             f"{'peak MB':>8}  stderr"
         )
         for row in huge:
-            print(
+            lines.append(
                 f"{row['case']:<44} {row['bytes']:>9} {row['exit']!s:>4} {row['seconds']:>6} "
                 f"{row['peak_rss_mb']:>8}  {row['stderr'][:90]}"
             )
     if ledger.failures or sample_failures:
-        print()
-        print("failures (first 40; inputs saved in benches/out/fuzz-failures/):")
+        lines.append("")
+        lines.append("failures (first 40; inputs saved in benches/out/fuzz-failures/):")
         for failure in ledger.failures[:40]:
-            print(
+            lines.append(
                 f"  {failure.ident} {failure.target}: {failure.outcome}: {failure.why}: "
                 f"{failure.message[:160]}"
             )
         for failure in sample_failures[:10]:
-            print(
+            lines.append(
                 f"  {failure['ident']} console-script: {failure['outcome']}: {failure['why']}: "
                 f"{failure['message'][:160]}"
             )
+    print()
+    print("\n".join(lines))
+    (OUT / "fuzz-report.txt").write_text("\n".join(lines) + "\n")
 
     summary = {
         "seed": args.seed,
