@@ -1621,19 +1621,21 @@ def _call_api(item: ApiInput) -> Any:
     return getattr(meshbits, item.func)(*args, **kwargs)
 
 
-def _reset_peak() -> None:
-    """Reset this process's peak RSS (Linux: 5 to /proc/self/clear_refs resets VmHWM)."""
-    with contextlib.suppress(OSError), open("/proc/self/clear_refs", "w") as handle:
-        handle.write("5")
-
-
-def _peak_mb() -> float:
-    """Peak RSS since the last :func:`_reset_peak` (VmHWM), in MB (ru_maxrss elsewhere)."""
+def _status_mb(field: str) -> float:
+    """A ``/proc/self/status`` field (VmRSS, VmHWM) in MB; ru_maxrss where there is none."""
     with contextlib.suppress(OSError), open("/proc/self/status") as handle:
         for line in handle:
-            if line.startswith("VmHWM:"):
+            if line.startswith(field + ":"):
                 return int(line.split()[1]) / 1024
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _reset_peak() -> float:
+    """Reset this process's peak RSS (Linux: 5 to /proc/self/clear_refs resets VmHWM to
+    the current RSS); return the current RSS in MB."""
+    with contextlib.suppress(OSError), open("/proc/self/clear_refs", "w") as handle:
+        handle.write("5")
+    return _status_mb("VmRSS")
 
 
 def _worker(conn: Any, index: int, log: str) -> None:
@@ -1663,7 +1665,7 @@ def _worker(conn: Any, index: int, log: str) -> None:
         if task is None:
             break
         ident, item, plan = task
-        _reset_peak()
+        resident = _reset_peak()
         folder = scratch / "run"
         shutil.rmtree(folder, ignore_errors=True)
         folder.mkdir()
@@ -1783,7 +1785,7 @@ def _worker(conn: Any, index: int, log: str) -> None:
                     ),
                 )
             )
-        conn.send(("end", _peak_mb()))
+        conn.send(("end", max(0.0, _status_mb("VmHWM") - resident)))
     shutil.rmtree(scratch, ignore_errors=True)
 
 
@@ -2246,7 +2248,7 @@ def main() -> int:
     # --- report ---
     failures_by_kind = collections.Counter(f.kind for f in ledger.failures)
     lines = []
-    header = f"{'kind':<24} {'inputs':>6} {'runs':>6} {'failed':>6} {'peak MB':>7}  outcomes"
+    header = f"{'kind':<24} {'inputs':>6} {'runs':>6} {'failed':>6} {'+MB':>5}  outcomes"
     lines += [header, "-" * len(header)]
     total_inputs = total_runs = 0
     for kind in inputs:
@@ -2258,13 +2260,14 @@ def main() -> int:
         )
         lines.append(
             f"{kind:<24} {ledger.inputs[kind]:>6} {sum(runs.values()):>6} "
-            f"{failures_by_kind[kind]:>6} {pool.peak_rss.get(kind, 0):>7.0f}  {text}"
+            f"{failures_by_kind[kind]:>6} {pool.peak_rss.get(kind, 0):>5.0f}  {text}"
         )
     lines.append("-" * len(header))
     lines.append(f"{'total':<24} {total_inputs:>6} {total_runs:>6} {len(ledger.failures):>6}")
     lines.append(
         f"in-process runs: {in_process:.0f} s on {args.workers} workers, {restarts} worker "
-        "restarts; peak MB: largest peak RSS of a worker during one input of the kind"
+        "restarts; +MB: the largest rise of a worker's peak RSS over its RSS at the start "
+        "of one input of the kind"
     )
     lines.append(
         f"load_mesh refusals: {ledger.refusals}, of which {ledger.generic} fell back to the "
@@ -2313,7 +2316,7 @@ def main() -> int:
         "runs": {kind: dict(counter) for kind, counter in ledger.runs.items()},
         "failures": [f.__dict__ | {"detail": f.detail[-1500:]} for f in ledger.failures],
         "seconds": {"generate": generated, "in_process": in_process},
-        "worker_peak_rss_mb": dict(pool.peak_rss),
+        "worker_peak_rss_rise_mb": dict(pool.peak_rss),
         "console_script": {"outcomes": dict(sample_outcomes), "failures": sample_failures},
         "huge": huge,
     }
