@@ -12,8 +12,9 @@ is reproducible with the same hypothesis version. Three parts:
   file goes through :func:`meshbits.load_mesh` and through ``meshbits.cli.main`` in
   process: when it loads, through ``k``, ``quantize --bits 8 -o``, ``hausdorff``,
   ``compress --vertices 50 -o``, ``compress --error 0.01 --relative -o`` and
-  ``plan --size 2KB``; when it does not, through one of them (in turn). A sample also
-  goes through the real ``meshbits`` console script in a subprocess.
+  ``plan --size 2KB``, and one of ``calibrate`` and ``plot`` in turn; when it does not,
+  through one of these eight (in turn). A sample also goes through the real ``meshbits``
+  console script in a subprocess.
 * **API.** Random and corrupted arrays and arguments through ``shape_complexity``,
   ``quantize``, ``cluster``, ``hausdorff``, ``ClosestPoints(...).query``,
   ``surface_samples``, ``compress``, ``simplify``, ``plan_for_size``, ``plan_for_error``
@@ -1494,6 +1495,9 @@ UNCLEAR = re.compile(
 )
 
 CLI_COMMANDS = ("k", "quantize", "hausdorff", "compress-vertices", "compress-error", "plan")
+#: The other commands that read a mesh: a loaded file goes through one of them too, in turn.
+EXTRA_COMMANDS = ("calibrate", "plot")
+ALL_COMMANDS = CLI_COMMANDS + EXTRA_COMMANDS
 
 
 def cli_argv(command: str, path: str, reference: str, out: Path, flip: bool) -> list[str]:
@@ -1517,6 +1521,10 @@ def cli_argv(command: str, path: str, reference: str, out: Path, flip: bool) -> 
             str(out / "c.ply"),
             "--quiet",
         ]
+    if command == "calibrate":
+        return ["calibrate", path, "--vertices", "20", "--bits", "6", "8"]
+    if command == "plot":
+        return ["plot", path, "-o", str(out / "p.png")]
     return ["plan", path, "--size", "2KB"]
 
 
@@ -1726,7 +1734,7 @@ def _worker(conn: Any, index: int, log: str) -> None:
                     result.message = text[:300]
             result.seconds = time.perf_counter() - start
             conn.send(("done", result))
-            commands = CLI_COMMANDS if loaded and plan["all"] else (plan["fallback"],)
+            commands = (*CLI_COMMANDS, plan["extra"]) if loaded else (plan["fallback"],)
             for command in commands:
                 argv = cli_argv(command, str(path), str(reference), folder, plan["flip"])
                 conn.send(("start", command))
@@ -1980,7 +1988,7 @@ def subprocess_sample(
         folder.mkdir()
         path = folder / item.name
         path.write_bytes(item.data)
-        command = CLI_COMMANDS[number % len(CLI_COMMANDS)]
+        command = ALL_COMMANDS[number % len(ALL_COMMANDS)]
         argv = cli_argv(command, str(path), str(reference), folder, number % 2 == 1)
         start = time.perf_counter()
         try:
@@ -2190,8 +2198,8 @@ def main() -> int:
             seen.add(key)
             ident = f"{kind}-{number:05d}"
             plan = {
-                "all": True,
-                "fallback": CLI_COMMANDS[number % len(CLI_COMMANDS)],
+                "fallback": ALL_COMMANDS[number % len(ALL_COMMANDS)],
+                "extra": EXTRA_COMMANDS[number // 2 % len(EXTRA_COMMANDS)],
                 "flip": number % 2 == 1,
             }
             tasks.append((ident, item, plan))
