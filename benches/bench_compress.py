@@ -61,7 +61,7 @@ def formats() -> None:
         used = len(np.unique(mesh[1]))
         for bits in (8, 11, 14):
             sizes = [encode(mesh, bits, format=f).size_bytes for f in ("draco", "glb", "ply")]
-            model_bytes = meshbits.model.file_size(bits, used) / 8
+            model_bytes = meshbits.model.file_size(bits, used, alpha=1.0, connectivity_bits=4.0) / 8
             print(
                 f"| {name.split('.')[0]} | {used:,} | {bits} | {model_bytes:,.0f} | "
                 + " | ".join(f"{size:,}" for size in sizes)

@@ -26,27 +26,49 @@ def main() -> None:
     rows = [
         (
             "plan_for_size(1e5 bits, K=50), exact",
-            per_call(lambda: model.plan_for_size(1e5, 50.0), 200),
+            per_call(
+                lambda: model.plan_for_size(
+                    1e5, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+                ),
+                200,
+            ),
         ),
         (
             "plan_for_size(1e5 bits, K=50), asymptotic",
-            per_call(lambda: model.plan_for_size(1e5, 50.0, method="asymptotic"), 200),
+            per_call(
+                lambda: model.plan_for_size(
+                    1e5, 50.0, method="asymptotic", grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+                ),
+                200,
+            ),
         ),
         (
             "plan_for_error(1e-3, K=50), exact",
-            per_call(lambda: model.plan_for_error(1e-3, 50.0), 200),
+            per_call(
+                lambda: model.plan_for_error(
+                    1e-3, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+                ),
+                200,
+            ),
         ),
         (
             "plan_for_vertices(1e4, K=50), exact",
-            per_call(lambda: model.plan_for_vertices(1e4, 50.0), 200),
+            per_call(
+                lambda: model.plan_for_vertices(
+                    1e4, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+                ),
+                200,
+            ),
         ),
         (
             "optimal_bits, 100000 vertex counts, exact",
-            per_call(lambda: model.optimal_bits(vertices, 50.0), 3),
+            per_call(
+                lambda: model.optimal_bits(vertices, 50.0, alpha=1.0, connectivity_bits=4.0), 3
+            ),
         ),
         (
             "tessellation_error, 100000 vertex counts",
-            per_call(lambda: model.tessellation_error(vertices, 50.0), 20),
+            per_call(lambda: model.tessellation_error(vertices, 50.0, grid_size=1.0), 20),
         ),
     ]
     width = max(len(name) for name, _ in rows)

@@ -206,7 +206,9 @@ def icosphere_grid(
         "measured": out,
         "area_ratio": max(area_ratio),
         "reference_vertices": len(ref.vertices),
-        "reference_error": float(model.tessellation_error(len(ref.vertices), 4 * math.pi)),
+        "reference_error": float(
+            model.tessellation_error(len(ref.vertices), 4 * math.pi, grid_size=1.0)
+        ),
         "self_distance": floor,
     }
 
@@ -376,7 +378,7 @@ def run(quick: bool, out: Path) -> str:
     ratio_unclipped = unclipped.measured / predicted
     big_v = v_axis >= 100
     t_only = np.array([paper_triangle_error(np.inf, v, sphere.theta0, sphere.z0) for v in v_axis])
-    et_model = np.asarray(model.tessellation_error(v_axis, 4 * math.pi))
+    et_model = np.asarray(model.tessellation_error(v_axis, 4 * math.pi, grid_size=1.0))
     say(
         f"Without quantization the midpoint error equals Eq. 10 to "
         f"{np.max(np.abs(t_only / et_model - 1)):.1e} (relative) at every V: the "
@@ -541,7 +543,7 @@ def run(quick: bool, out: Path) -> str:
     rows = []
     for name, g in grids.items():
         k = ks[name]["circumsphere"].k
-        et = np.asarray(model.tessellation_error(g.vertices, k))
+        et = np.asarray(model.tessellation_error(g.vertices, k, grid_size=1.0))
         s = g.grid_size
         for i, v in enumerate(g.vertices):
             rows.append(
@@ -558,7 +560,9 @@ def run(quick: bool, out: Path) -> str:
     say("Tessellation error alone (unquantized levels): model E_T/S next to measured.\n")
     spread = []
     for name, g in grids.items():
-        et = np.asarray(model.tessellation_error(g.vertices, ks[name]["circumsphere"].k))
+        et = np.asarray(
+            model.tessellation_error(g.vertices, ks[name]["circumsphere"].k, grid_size=1.0)
+        )
         r_max = g.simplified_max / g.grid_size / et
         r_mean = g.simplified_mean / g.grid_size / et
         spread.append(
@@ -635,7 +639,9 @@ def _table1_bunny(mesh: Any, k: Any, quick: bool) -> str:
         if len(level[0]) > 1.1 * v:  # open borders kept: the bunny's holes hold vertices
             level = _fast_simplified(mesh, v, lock_border=False)
             note = " (borders not preserved)"
-        plan = model.plan_for_vertices(len(level[0]), k.k, grid_size=k.grid_size)
+        plan = model.plan_for_vertices(
+            len(level[0]), k.k, grid_size=k.grid_size, alpha=1.0, connectivity_bits=4.0
+        )
         samples = 10 * len(faces)
         base_max, base_mean = _measure(mesh, level, samples, 0)
         need_max = need_mean = None
@@ -703,7 +709,9 @@ def _budget_section(grids: dict[str, Grid], ks: dict[str, Any]) -> str:
         lo = (3 * ALPHA * 8 + T) * g.vertices.min()
         hi = (3 * ALPHA * 14 + T) * g.vertices.max()
         for budget in np.geomspace(lo, hi, 4):
-            plan = model.plan_for_size(budget, k.k, grid_size=k.grid_size)
+            plan = model.plan_for_size(
+                budget, k.k, grid_size=k.grid_size, alpha=1.0, connectivity_bits=4.0
+            )
             m_max = measured_optimum(g, budget, "max")
             m_mean = measured_optimum(g, budget, "mean")
             if m_max is None:
@@ -896,7 +904,12 @@ def _sphere_figures(out, sphere, sphere_many, predicted, opt3, opt64, budgets) -
             colors="black",
             linewidths=0.6,
         )
-        ax.plot(v, model.optimal_bits(v, SPHERE_K), color="red", label="model optimal B(V)")
+        ax.plot(
+            v,
+            model.optimal_bits(v, SPHERE_K, alpha=1.0, connectivity_bits=4.0),
+            color="red",
+            label="model optimal B(V)",
+        )
         ax.set_title(title, fontsize=10)
         ax.set_xlabel("V (log)")
         if index == 0:
@@ -931,10 +944,15 @@ def _sphere_figures(out, sphere, sphere_many, predicted, opt3, opt64, budgets) -
     ax = fig.add_subplot(1, 1, 1)
     ax.set_xscale("log")
     vv = np.geomspace(20, 2e6, 200)
-    ax.plot(vv, model.optimal_bits(vv, SPHERE_K), color="black", label="model ridge B(V), Eq. 12")
     ax.plot(
         vv,
-        model.optimal_bits(vv, SPHERE_K, exact=False, b0="paper"),
+        model.optimal_bits(vv, SPHERE_K, alpha=1.0, connectivity_bits=4.0),
+        color="black",
+        label="model ridge B(V), Eq. 12",
+    )
+    ax.plot(
+        vv,
+        model.optimal_bits(vv, SPHERE_K, exact=False, b0="paper", alpha=1.0, connectivity_bits=4.0),
         color="gray",
         linestyle=":",
         label="Eq. 13 with the paper's B0 = 1.838",
@@ -999,7 +1017,13 @@ def _grid_figure(out, grids, ks) -> None:
             )
             color = line[0].get_color()
             ax.plot(g.bits, g.mean_error[i] / g.grid_size, linestyle=":", color=color)
-            ax.plot(g.bits, model.error(g.bits, v, k.k), linestyle="--", color=color, linewidth=0.8)
+            ax.plot(
+                g.bits,
+                model.error(g.bits, v, k.k, grid_size=1.0),
+                linestyle="--",
+                color=color,
+                linewidth=0.8,
+            )
         ax.set_yscale("log")
         ax.set_title(f"{name} (K = {k.k:.3g})", fontsize=10)
         ax.set_xlabel("B")
@@ -1019,7 +1043,7 @@ def _readme_figure(out, meshes, ks) -> None:
 
     k = ks["bunny"]["circumsphere"]
     n = len(meshes["bunny"][0][0])
-    plan = model.plan_for_vertices(n, k.k)
+    plan = model.plan_for_vertices(n, k.k, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
     error_surface(
         k.k,
         vertices=(100, 1e7),

@@ -161,3 +161,19 @@ def test_draco_on_a_mesh_of_degenerate_faces_is_refused_in_words(tmp_path):
     )
     assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
     assert "degenerate" in done.stderr or "every face repeats a vertex" in done.stderr
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    fmt=st.sampled_from(["glb", "ply"]),
+    bits=st.integers(1, 16),
+    subdivisions=st.integers(0, 4),
+)
+def test_fixed_width_size_is_the_encoded_size(fmt, bits, subdivisions):
+    """glb and ply sizes from the vertex and face counts alone, against the encoder."""
+    from meshbits.encode import fixed_width_size_bits
+
+    sphere = trimesh.creation.icosphere(subdivisions)
+    encoded = encode((sphere.vertices * 3.7 + 1.0, sphere.faces), bits, format=fmt)
+    predicted = fixed_width_size_bits(fmt, bits, len(sphere.vertices), len(sphere.faces))
+    assert abs(predicted - encoded.size_bits) <= 8 * 16  # the header's digits, in bits

@@ -164,7 +164,7 @@ log_errors = st.floats(-8.0, -1.0)
     ],
 )
 def test_reference_table_size(size, bits, vertices, rel_error):
-    p = model.plan_for_size(size, 50.0, alpha=1.0, connectivity_bits=4.0)
+    p = model.plan_for_size(size, 50.0, alpha=1.0, connectivity_bits=4.0, grid_size=1.0)
     assert p.bits == pytest.approx(bits, abs=1e-4)
     assert p.vertices == pytest.approx(vertices, rel=1e-3)
     assert p.error == pytest.approx(rel_error, rel=1e-3)
@@ -178,7 +178,7 @@ def test_reference_table_size(size, bits, vertices, rel_error):
     [(1e-2, 9.5287, 1090.1, 35521.0), (1e-3, 13.2300, 10575.7, 462056.0)],
 )
 def test_reference_table_error(err, bits, vertices, size):
-    p = model.plan_for_error(err, 50.0, alpha=1.0, connectivity_bits=4.0)
+    p = model.plan_for_error(err, 50.0, alpha=1.0, connectivity_bits=4.0, grid_size=1.0)
     assert p.bits == pytest.approx(bits, abs=1e-4)
     assert p.vertices == pytest.approx(vertices, rel=1e-3)
     assert p.file_size == pytest.approx(size, rel=1e-4)
@@ -186,13 +186,13 @@ def test_reference_table_error(err, bits, vertices, size):
 
 
 def test_grid_size_scales_errors_only():
-    a = model.plan_for_error(1e-3, 50.0)
-    b = model.plan_for_error(1e-3 * 7.5, 50.0, grid_size=7.5)
+    a = model.plan_for_error(1e-3, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
+    b = model.plan_for_error(1e-3 * 7.5, 50.0, grid_size=7.5, alpha=1.0, connectivity_bits=4.0)
     assert b.bits == pytest.approx(a.bits, rel=1e-12)
     assert b.vertices == pytest.approx(a.vertices, rel=1e-12)
     assert b.error == pytest.approx(7.5 * a.error, rel=1e-12)
-    c = model.plan_for_size(1e5, 50.0, grid_size=7.5)
-    d = model.plan_for_size(1e5, 50.0)
+    c = model.plan_for_size(1e5, 50.0, grid_size=7.5, alpha=1.0, connectivity_bits=4.0)
+    d = model.plan_for_size(1e5, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
     assert c.bits == d.bits and c.quantization_error == pytest.approx(7.5 * d.quantization_error)
 
 
@@ -203,35 +203,40 @@ def test_elementwise_formulas_and_broadcasting():
     b = np.array([0.0, 8.0, 12.5])
     v = np.array([[100.0], [1e3], [1e6]])
     assert model.file_size(10, 1000, alpha=0.5, connectivity_bits=2) == 17000.0
-    assert np.allclose(model.file_size(b, v), (3 * b + 4) * v)
+    assert np.allclose(model.file_size(b, v, alpha=1.0, connectivity_bits=4.0), (3 * b + 4) * v)
     assert np.allclose(model.quantization_error(b, 2.0), 2.0 * ref_eq(b))
     assert model.sphere_vertices(1000, 50) == pytest.approx(4 * math.pi * 20)
     assert np.allclose(model.tessellation_error(v, 50.0, 3.0), 3.0 * ref_et(v, 50.0))
-    assert np.allclose(model.error(b, v, 50.0), ref_eq(b) + ref_et(v, 50.0))
-    assert isinstance(model.quantization_error(3), float)
-    assert model.tessellation_error(v, 50.0).shape == (3, 1)
-    assert model.error(b, v, 50.0).shape == (3, 3)
+    assert np.allclose(model.error(b, v, 50.0, grid_size=1.0), ref_eq(b) + ref_et(v, 50.0))
+    assert isinstance(model.quantization_error(3, grid_size=1.0), float)
+    assert model.tessellation_error(v, 50.0, grid_size=1.0).shape == (3, 1)
+    assert model.error(b, v, 50.0, grid_size=1.0).shape == (3, 3)
 
 
 def test_tessellation_error_is_stable_and_asymptotic():
     k = 37.0
     moderate = np.geomspace(20, 1e4, 50)
     assert np.allclose(
-        model.tessellation_error(moderate, k), ref_et_textbook(moderate, k), rtol=1e-9, atol=0
+        model.tessellation_error(moderate, k, grid_size=1.0),
+        ref_et_textbook(moderate, k),
+        rtol=1e-9,
+        atol=0,
     )
     huge = np.geomspace(1e6, 1e300, 60)
     # E_T = K / (3 sqrt(3) V) (1 + O(K/V)): exact to rounding once K/V is tiny
-    assert np.allclose(model.tessellation_error(huge, k), k / (3 * SQ3 * huge), rtol=1e-5)
     assert np.allclose(
-        model.tessellation_error(huge[10:], k), k / (3 * SQ3 * huge[10:]), rtol=1e-13
+        model.tessellation_error(huge, k, grid_size=1.0), k / (3 * SQ3 * huge), rtol=1e-5
+    )
+    assert np.allclose(
+        model.tessellation_error(huge[10:], k, grid_size=1.0), k / (3 * SQ3 * huge[10:]), rtol=1e-13
     )
     # a sphere of radius S has K = (4 pi S^2 / S) / S = 4 pi, so V_S = V: 12 vertices
     theta = math.sqrt(2 * C / 12)
-    assert model.tessellation_error(12, 4 * math.pi) == pytest.approx(
+    assert model.tessellation_error(12, 4 * math.pi, grid_size=1.0) == pytest.approx(
         1 - math.sqrt((1 + 2 * math.cos(theta)) / 3), rel=1e-12
     )
     # a sphere of radius S/2 (grid K = 2 pi): half the error of V_S = 2V vertices on radius S
-    assert model.tessellation_error(500, 2 * math.pi) == pytest.approx(
+    assert model.tessellation_error(500, 2 * math.pi, grid_size=1.0) == pytest.approx(
         0.5 * (1 - math.sqrt((1 + 2 * math.cos(math.sqrt(2 * C / 500))) / 3)), rel=1e-3
     )
     # beyond theta = 2 pi / 3 the formula has no meaning: held at S, non-increasing in V
@@ -251,7 +256,9 @@ def test_vertices_for_error_is_the_exact_inverse(log_e, k, s):
 
 def test_vertices_for_error_asymptotic_eq18():
     e = np.geomspace(1e-12, 1e-6, 7)
-    assert np.allclose(model.vertices_for_error(e, 20.0), 20.0 / (3 * SQ3 * e), rtol=1e-5)
+    assert np.allclose(
+        model.vertices_for_error(e, 20.0, grid_size=1.0), 20.0 / (3 * SQ3 * e), rtol=1e-5
+    )
 
 
 def test_optimal_bits_solves_eq12_and_eq13():
@@ -280,17 +287,23 @@ def test_b0_values():
     assert model.DERIVED_B0 == math.log2(4.5 * math.log(2))
     f, k = 1e6, 30.0
     for b0, value in (("derived", model.DERIVED_B0), ("paper", 1.838), (2.5, 2.5)):
-        p = model.plan_for_size(f, k, alpha=0.5, method="asymptotic", b0=b0)
+        p = model.plan_for_size(
+            f, k, alpha=0.5, method="asymptotic", b0=b0, grid_size=1.0, connectivity_bits=4.0
+        )
         assert p.b0 == value
         assert p.bits == pytest.approx(math.log2(f / (3 * 0.5 * k)) + value, abs=1e-12)  # Eq. 14
         assert p.vertices == pytest.approx(f / (3 * 0.5 * p.bits + 4), rel=1e-12)  # Eq. 15
     # b0 does not enter the exact solution
-    assert model.plan_for_size(f, k, b0="paper") == model.plan_for_size(f, k)
+    assert model.plan_for_size(
+        f, k, b0="paper", grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+    ) == model.plan_for_size(f, k, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
 
 
 def test_asymptotic_error_plan_is_the_fixed_point():
     e, alpha, t = 1e-4, 0.4, 6.0
-    p = model.plan_for_error(e, 80.0, alpha=alpha, connectivity_bits=t, method="asymptotic")
+    p = model.plan_for_error(
+        e, 80.0, alpha=alpha, connectivity_bits=t, method="asymptotic", grid_size=1.0
+    )
     tau = t / (3 * alpha)
     assert p.bits == pytest.approx(math.log2(SQ3 * (1 + LN2 * (p.bits + tau)) / (2 * e)), abs=1e-12)
     e_t = e - float(ref_eq(p.bits))
@@ -304,7 +317,7 @@ def test_asymptotic_error_plan_is_the_fixed_point():
 @FAST
 def test_plan_for_size_matches_brute_force(k, log_f, alpha, t):
     f = 10.0**log_f
-    p = model.plan_for_size(f, k, alpha=alpha, connectivity_bits=t)
+    p = model.plan_for_size(f, k, alpha=alpha, connectivity_bits=t, grid_size=1.0)
     assume(p.in_model_domain)
     assert p.bits == pytest.approx(brute_size(f, k, alpha, t), abs=1e-6)
     assert p.file_size == pytest.approx(f, rel=1e-12)
@@ -315,7 +328,7 @@ def test_plan_for_size_matches_brute_force(k, log_f, alpha, t):
 @FAST
 def test_plan_for_error_matches_brute_force(k, log_e, alpha, t):
     e = 10.0**log_e
-    p = model.plan_for_error(e, k, alpha=alpha, connectivity_bits=t)
+    p = model.plan_for_error(e, k, alpha=alpha, connectivity_bits=t, grid_size=1.0)
     assume(p.in_model_domain)
     assert p.bits == pytest.approx(brute_error(e, k, alpha, t), abs=1e-6)
     assert p.error == pytest.approx(e, rel=1e-9)
@@ -325,11 +338,11 @@ def test_plan_for_error_matches_brute_force(k, log_e, alpha, t):
 @given(k=ks, log_f=log_sizes, alpha=alphas, t=conn)
 @FAST
 def test_optimum_lies_on_the_ridge(k, log_f, alpha, t):
-    p = model.plan_for_size(10.0**log_f, k, alpha=alpha, connectivity_bits=t)
+    p = model.plan_for_size(10.0**log_f, k, alpha=alpha, connectivity_bits=t, grid_size=1.0)
     assume(p.in_model_domain)
     b = model.optimal_bits(p.vertices, k, alpha=alpha, connectivity_bits=t)
     assert b == pytest.approx(p.bits, abs=1e-9)
-    q = model.plan_for_vertices(p.vertices, k, alpha=alpha, connectivity_bits=t)
+    q = model.plan_for_vertices(p.vertices, k, alpha=alpha, connectivity_bits=t, grid_size=1.0)
     assert q.bits == pytest.approx(p.bits, abs=1e-9)
     assert q.file_size == pytest.approx(p.file_size, rel=1e-9)
 
@@ -338,17 +351,21 @@ def test_optimum_lies_on_the_ridge(k, log_f, alpha, t):
 @FAST
 def test_asymptotic_relations_at_the_optimum(k, log_f, alpha, t, log_e):
     tau = t / (3 * alpha)
-    p = model.plan_for_size(10.0**log_f, k, alpha=alpha, connectivity_bits=t)
+    p = model.plan_for_size(10.0**log_f, k, alpha=alpha, connectivity_bits=t, grid_size=1.0)
     assume(p.in_model_domain)
     v_s = p.sphere_vertices
     # E_T = ln 2 (B + T/(3 alpha)) E_Q, up to O(1/V_S^2)
     ratio = p.tessellation_error / (LN2 * (p.bits + tau) * p.quantization_error)
     assert abs(ratio - 1) <= 2.0 / v_s**2 + 1e-11
     # and the asymptotic solution converges to the exact one at the same rate
-    a = model.plan_for_size(10.0**log_f, k, alpha=alpha, connectivity_bits=t, method="asymptotic")
+    a = model.plan_for_size(
+        10.0**log_f, k, alpha=alpha, connectivity_bits=t, method="asymptotic", grid_size=1.0
+    )
     assert abs(a.bits - p.bits) <= 4.0 / v_s**2 + 1e-11
-    q = model.plan_for_error(10.0**log_e, k, alpha=alpha, connectivity_bits=t)
-    r = model.plan_for_error(10.0**log_e, k, alpha=alpha, connectivity_bits=t, method="asymptotic")
+    q = model.plan_for_error(10.0**log_e, k, alpha=alpha, connectivity_bits=t, grid_size=1.0)
+    r = model.plan_for_error(
+        10.0**log_e, k, alpha=alpha, connectivity_bits=t, method="asymptotic", grid_size=1.0
+    )
     if q.in_model_domain:
         assert abs(q.bits - r.bits) <= 4.0 / q.sphere_vertices**2 + 1e-11
 
@@ -366,7 +383,9 @@ def _error_cost(p, b):
     e_t = p.budget - float(ref_eq(b))
     if e_t <= 0:
         return math.inf
-    return (3 * p.alpha * b + p.connectivity_bits) * model.vertices_for_error(e_t, p.k)
+    return (3 * p.alpha * b + p.connectivity_bits) * model.vertices_for_error(
+        e_t, p.k, grid_size=1.0
+    )
 
 
 def _neighbours(w):
@@ -376,7 +395,7 @@ def _neighbours(w):
 @given(k=ks, log_f=log_sizes, alpha=alphas, t=conn)
 @settings(max_examples=100, deadline=None)
 def test_whole_bits_size_never_worse_than_neighbours(k, log_f, alpha, t):
-    p = model.plan_for_size(10.0**log_f, k, alpha=alpha, connectivity_bits=t)
+    p = model.plan_for_size(10.0**log_f, k, alpha=alpha, connectivity_bits=t, grid_size=1.0)
     assume(p.in_model_domain)
     w = p.whole_bits
     assert w in (math.floor(p.bits), math.ceil(p.bits))
@@ -390,7 +409,7 @@ def test_whole_bits_size_never_worse_than_neighbours(k, log_f, alpha, t):
 @given(k=ks, log_e=log_errors, alpha=alphas, t=conn)
 @settings(max_examples=100, deadline=None)
 def test_whole_bits_error_never_worse_than_neighbours(k, log_e, alpha, t):
-    p = model.plan_for_error(10.0**log_e, k, alpha=alpha, connectivity_bits=t)
+    p = model.plan_for_error(10.0**log_e, k, alpha=alpha, connectivity_bits=t, grid_size=1.0)
     assume(p.in_model_domain)
     w = p.whole_bits
     assert w in (math.floor(p.bits), math.ceil(p.bits))
@@ -404,7 +423,7 @@ def test_whole_bits_error_never_worse_than_neighbours(k, log_e, alpha, t):
 @given(k=ks, log_v=st.floats(1.5, 9.0), alpha=alphas, t=conn)
 @settings(max_examples=100, deadline=None)
 def test_whole_bits_vertices_never_worse_than_neighbours(k, log_v, alpha, t):
-    p = model.plan_for_vertices(10.0**log_v, k, alpha=alpha, connectivity_bits=t)
+    p = model.plan_for_vertices(10.0**log_v, k, alpha=alpha, connectivity_bits=t, grid_size=1.0)
     assume(p.in_model_domain)
     price = LN2 * float(ref_eq(p.bits))  # the Lagrange multiplier times 3 alpha V
 
@@ -423,7 +442,7 @@ def test_whole_bits_vertices_never_worse_than_neighbours(k, log_v, alpha, t):
 @settings(max_examples=80, deadline=None)
 def test_more_size_never_more_error(k, log_f, grow, alpha, t):
     f = 10.0**log_f
-    kw = {"alpha": alpha, "connectivity_bits": t}
+    kw = {"alpha": alpha, "connectivity_bits": t, "grid_size": 1.0}
     small, big = model.plan_for_size(f, k, **kw), model.plan_for_size(f * (1 + grow), k, **kw)
     assert big.error <= small.error * (1 + 1e-12)
     assert big.whole_error <= small.whole_error * (1 + 1e-12)
@@ -434,7 +453,7 @@ def test_more_size_never_more_error(k, log_f, grow, alpha, t):
 @settings(max_examples=80, deadline=None)
 def test_more_error_never_more_size(k, log_e, grow, alpha, t):
     e = 10.0**log_e
-    kw = {"alpha": alpha, "connectivity_bits": t}
+    kw = {"alpha": alpha, "connectivity_bits": t, "grid_size": 1.0}
     tight = model.plan_for_error(e, k, **kw)
     loose = model.plan_for_error(min(e * (1 + grow), 0.5), k, **kw)
     assert loose.file_size <= tight.file_size * (1 + 1e-12)
@@ -445,7 +464,7 @@ def test_more_error_never_more_size(k, log_e, grow, alpha, t):
 @settings(max_examples=80, deadline=None)
 def test_larger_k_never_fewer_vertices(k, grow, log_e, alpha, t):
     e = 10.0**log_e
-    kw = {"alpha": alpha, "connectivity_bits": t}
+    kw = {"alpha": alpha, "connectivity_bits": t, "grid_size": 1.0}
     simple, complex_ = (
         model.plan_for_error(e, k, **kw),
         model.plan_for_error(e, k * (1 + grow), **kw),
@@ -461,7 +480,7 @@ def test_larger_k_never_fewer_vertices(k, grow, log_e, alpha, t):
 @settings(max_examples=60, deadline=None)
 def test_more_vertices_more_bits_less_error(k, log_v, grow, alpha, t):
     v = max(10.0**log_v, 4.0)
-    kw = {"alpha": alpha, "connectivity_bits": t}
+    kw = {"alpha": alpha, "connectivity_bits": t, "grid_size": 1.0}
     few, many = (
         model.plan_for_vertices(v, k, **kw),
         model.plan_for_vertices(v * (1 + grow), k, **kw),
@@ -474,19 +493,21 @@ def test_more_vertices_more_bits_less_error(k, log_v, grow, alpha, t):
 
 
 def test_domain_flags():
-    p = model.plan_for_size(1e4, 1000.0)
+    p = model.plan_for_size(1e4, 1000.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
     assert not p.in_model_domain
     assert "V_S" in p.domain_reason and "< 12" in p.domain_reason
-    q = model.plan_for_vertices(4, 50.0)
+    q = model.plan_for_vertices(4, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
     assert not q.in_model_domain and "lowest allowed B" in q.domain_reason
-    r = model.plan_for_error(0.5, 50.0)
+    r = model.plan_for_error(0.5, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
     assert not r.in_model_domain
-    ok = model.plan_for_vertices(12 * 50 / (4 * math.pi) * 1.001, 50.0)
+    ok = model.plan_for_vertices(
+        12 * 50 / (4 * math.pi) * 1.001, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+    )
     assert ok.in_model_domain and ok.sphere_vertices >= 12
 
 
 def test_to_dict_is_json_ready():
-    d = model.plan_for_size(1e5, 50.0).to_dict()
+    d = model.plan_for_size(1e5, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0).to_dict()
     assert json.loads(json.dumps(d)) == d
     for key in (
         "bits",
@@ -513,32 +534,129 @@ def test_to_dict_is_json_ready():
 @pytest.mark.parametrize(
     ("call", "match"),
     [
-        (lambda: model.plan_for_size(27.9, 50.0), "cannot hold even a tetrahedron"),
-        (lambda: model.plan_for_size(11.9, 50.0, connectivity_bits=0), "tetrahedron"),
-        (lambda: model.plan_for_size(0, 50.0), "size_bits must be positive"),
-        (lambda: model.plan_for_error(0.0, 50.0), "error must be positive"),
-        (lambda: model.plan_for_error(-1e-3, 50.0), "error must be positive"),
-        (lambda: model.plan_for_error(1.0, 50.0), "below the grid size"),
-        (lambda: model.plan_for_error(3.0, 50.0, grid_size=2.0), "below the grid size"),
-        (lambda: model.plan_for_error(math.nan, 50.0), "error must be positive and finite"),
-        (lambda: model.plan_for_size(1e5, 0.0), "k must be positive"),
-        (lambda: model.plan_for_size(1e5, -3.0), "k must be positive"),
-        (lambda: model.plan_for_size(1e5, math.inf), "k must be positive and finite"),
-        (lambda: model.plan_for_size(1e5, math.nan), "k must be positive and finite"),
-        (lambda: model.plan_for_size(1e5, 50.0, alpha=0.0), r"alpha must be in \(0, 1\]"),
-        (lambda: model.plan_for_size(1e5, 50.0, alpha=1.01), r"alpha must be in \(0, 1\]"),
-        (lambda: model.plan_for_error(1e-3, 50.0, alpha=-1), "alpha"),
-        (lambda: model.plan_for_size(1e5, 50.0, connectivity_bits=-1), "connectivity_bits"),
-        (lambda: model.plan_for_size(1e5, 50.0, grid_size=0), "grid_size"),
-        (lambda: model.plan_for_size(1e5, 50.0, method="newton"), "method must be one of"),
-        (lambda: model.plan_for_size(1e5, 50.0, b0="guess"), "b0 must be"),
-        (lambda: model.plan_for_size(1e5, 50.0, b0=math.inf), "b0 must be finite"),
-        (lambda: model.plan_for_vertices(3.5, 50.0), "at least 4 vertices"),
-        (lambda: model.vertices_for_error(1.0, 50.0), "below the grid size"),
-        (lambda: model.vertices_for_error([1e-3, 0.0], 50.0), r"error must be .*1 of 2"),
-        (lambda: model.tessellation_error(0, 50.0), "vertices must be positive"),
-        (lambda: model.optimal_bits(100, [1.0, -1.0]), "k must be positive"),
-        (lambda: model.guaranteed_bits(0.0), "error must be positive"),
+        (
+            lambda: model.plan_for_size(
+                27.9, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "cannot hold even a tetrahedron",
+        ),
+        (
+            lambda: model.plan_for_size(11.9, 50.0, connectivity_bits=0, grid_size=1.0, alpha=1.0),
+            "tetrahedron",
+        ),
+        (
+            lambda: model.plan_for_size(0, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0),
+            "size_bits must be positive",
+        ),
+        (
+            lambda: model.plan_for_error(
+                0.0, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "error must be positive",
+        ),
+        (
+            lambda: model.plan_for_error(
+                -1e-3, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "error must be positive",
+        ),
+        (
+            lambda: model.plan_for_error(
+                1.0, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "below the grid size",
+        ),
+        (
+            lambda: model.plan_for_error(
+                3.0, 50.0, grid_size=2.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "below the grid size",
+        ),
+        (
+            lambda: model.plan_for_error(
+                math.nan, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "error must be positive and finite",
+        ),
+        (
+            lambda: model.plan_for_size(1e5, 0.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0),
+            "k must be positive",
+        ),
+        (
+            lambda: model.plan_for_size(1e5, -3.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0),
+            "k must be positive",
+        ),
+        (
+            lambda: model.plan_for_size(
+                1e5, math.inf, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "k must be positive and finite",
+        ),
+        (
+            lambda: model.plan_for_size(
+                1e5, math.nan, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "k must be positive and finite",
+        ),
+        (
+            lambda: model.plan_for_size(1e5, 50.0, alpha=0.0, grid_size=1.0, connectivity_bits=4.0),
+            r"alpha must be in \(0, 1\]",
+        ),
+        (
+            lambda: model.plan_for_size(
+                1e5, 50.0, alpha=1.01, grid_size=1.0, connectivity_bits=4.0
+            ),
+            r"alpha must be in \(0, 1\]",
+        ),
+        (
+            lambda: model.plan_for_error(
+                1e-3, 50.0, alpha=-1, grid_size=1.0, connectivity_bits=4.0
+            ),
+            "alpha",
+        ),
+        (
+            lambda: model.plan_for_size(1e5, 50.0, connectivity_bits=-1, grid_size=1.0, alpha=1.0),
+            "connectivity_bits",
+        ),
+        (
+            lambda: model.plan_for_size(1e5, 50.0, grid_size=0, alpha=1.0, connectivity_bits=4.0),
+            "grid_size",
+        ),
+        (
+            lambda: model.plan_for_size(
+                1e5, 50.0, method="newton", grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "method must be one of",
+        ),
+        (
+            lambda: model.plan_for_size(
+                1e5, 50.0, b0="guess", grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "b0 must be",
+        ),
+        (
+            lambda: model.plan_for_size(
+                1e5, 50.0, b0=math.inf, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "b0 must be finite",
+        ),
+        (
+            lambda: model.plan_for_vertices(
+                3.5, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+            ),
+            "at least 4 vertices",
+        ),
+        (lambda: model.vertices_for_error(1.0, 50.0, grid_size=1.0), "below the grid size"),
+        (
+            lambda: model.vertices_for_error([1e-3, 0.0], 50.0, grid_size=1.0),
+            r"error must be .*1 of 2",
+        ),
+        (lambda: model.tessellation_error(0, 50.0, grid_size=1.0), "vertices must be positive"),
+        (
+            lambda: model.optimal_bits(100, [1.0, -1.0], alpha=1.0, connectivity_bits=4.0),
+            "k must be positive",
+        ),
+        (lambda: model.guaranteed_bits(0.0, grid_size=1.0), "error must be positive"),
     ],
 )
 def test_bad_constraints_raise_value_error(call, match):
@@ -549,11 +667,15 @@ def test_bad_constraints_raise_value_error(call, match):
 @pytest.mark.parametrize(
     "call",
     [
-        lambda: model.plan_for_size("1e5", 50.0),
-        lambda: model.plan_for_size(None, 50.0),
-        lambda: model.plan_for_size([1e5, 1e6], 50.0),
-        lambda: model.quantization_error(np.array(["a"])),
-        lambda: model.plan_for_size(1e5, 50.0, b0=None),
+        lambda: model.plan_for_size("1e5", 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0),
+        lambda: model.plan_for_size(None, 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0),
+        lambda: model.plan_for_size(
+            [1e5, 1e6], 50.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+        ),
+        lambda: model.quantization_error(np.array(["a"]), grid_size=1.0),
+        lambda: model.plan_for_size(
+            1e5, 50.0, b0=None, grid_size=1.0, alpha=1.0, connectivity_bits=4.0
+        ),
     ],
 )
 def test_bad_types_raise_type_error(call):
@@ -582,8 +704,8 @@ def test_guaranteed_bits_is_the_smallest_safe_b(log_e, s):
 
 def test_guaranteed_bits_exact_boundary_and_arrays():
     for b in (1, 2, 7, 12, 20):
-        assert model.guaranteed_bits(_worst_move(b, 1.0)) == b
-        assert model.guaranteed_bits(_worst_move(b, 1.0) * (1 - 1e-9)) == b + 1
+        assert model.guaranteed_bits(_worst_move(b, 1.0), grid_size=1.0) == b
+        assert model.guaranteed_bits(_worst_move(b, 1.0) * (1 - 1e-9), grid_size=1.0) == b + 1
     out = model.guaranteed_bits(np.array([2.0, 1.0, 1e-3, 1e-6]), 2.0)
     assert out.dtype == np.int64 and out.tolist() == [1, 2, 11, 21]
 
@@ -722,8 +844,42 @@ def test_cli_plan_table(capsys):
     out = capsys.readouterr().out
     assert "continuous" in out and "whole bits" in out and "E_T" in out
     ref = meshbits.shape_complexity(meshbits.load_mesh(MESH))
-    whole = model.plan_for_size(32768.0, ref.k, grid_size=ref.grid_size)
+    whole = model.plan_for_size(32768.0, ref.k, grid_size=ref.grid_size)  # Draco's fit
     assert f"quantize to {whole.whole_bits} bits" in out
+
+
+def test_plan_and_compress_share_one_size_model(capsys):
+    """`meshbits plan` printed alpha = 1, T = 4 (the paper's) while compress started from
+    Draco's fit: on bunny --size 20KB plan said V = 4,324, compress delivered 6,763."""
+    from meshbits.constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS
+
+    out = _json(capsys, ["plan", MESH, "--size", "6KB"])
+    assert (out["alpha"], out["connectivity_bits"]) == (DRACO_ALPHA, DRACO_CONNECTIVITY_BITS)
+    result = meshbits.compress(meshbits.load_mesh(MESH), size=48_000, max_iterations=1)
+    assert result.plan is not None
+    assert result.plan.whole_bits == out["whole_bits"]
+    assert result.plan.whole_vertices == pytest.approx(out["whole_vertices"], rel=1e-12)
+    paper = _json(
+        capsys, ["plan", MESH, "--size", "6KB", "--alpha", "1", "--connectivity-bits", "4"]
+    )
+    assert paper["whole_vertices"] < out["whole_vertices"]
+
+
+@pytest.mark.parametrize("fmt", ["ply", "glb"])
+def test_plan_for_a_fixed_width_format_predicts_the_bytes_compress_writes(capsys, fmt):
+    """glb and ply store positions in fixed-width fields: the plan's size for its V is the
+    size of the file compress writes at that V, within the header's few digits."""
+    out = _json(capsys, ["plan", MESH, "--format", fmt, "--size", "6KB"])
+    assert out["bits"] == meshbits.constants.FORMAT_MAX_BITS[fmt]
+    assert out["file_size"] == pytest.approx(48_000, rel=1e-6)
+    result = meshbits.compress(
+        meshbits.load_mesh(MESH), vertices=round(out["vertices"]), format=fmt
+    )
+    assert result.size_bits == pytest.approx(out["file_size"], rel=0.06)  # V within 5%
+    absolute = _json(capsys, ["plan", MESH, "--format", fmt, "--error", "0.004", "--relative"])
+    assert absolute["error"] == pytest.approx(0.004 * out["grid_size"], rel=1e-9)
+    assert main(["plan", MESH, "--format", fmt, "--size", "6KB", "--alpha", "0.5"]) == 2
+    assert "model Draco" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
@@ -731,7 +887,7 @@ def test_cli_plan_table(capsys):
     [
         (["--size", "100kb"], "ambiguous"),
         (["--size", "100"], "needs a unit"),
-        (["--size", "1B"], "tetrahedron"),
+        (["--size", "4bit"], "tetrahedron"),
         (["--error", "2", "--relative"], "below the grid size"),
         (["--error", "-1"], "must be a positive finite number, got '-1'"),
         (["--vertices", "2"], "at least 4 vertices"),
@@ -793,9 +949,9 @@ def test_cli_plan_flat_mesh_exits_2(capsys, tmp_path):
 )
 def test_plans_beyond_the_float64_range_are_refused(plan, args, kwargs):
     with pytest.raises(meshbits.MeshbitsError, match="model's numeric range"):
-        plan(*args, **kwargs)
+        plan(*args, **{"grid_size": 1.0, **kwargs})
 
 
 def test_plans_near_the_float64_range_still_answer():
-    plan = model.plan_for_error(1e-300, 10.0)
+    plan = model.plan_for_error(1e-300, 10.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
     assert 1000 < plan.bits < model.MODEL_MAX_BITS and math.isfinite(plan.vertices)

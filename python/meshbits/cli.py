@@ -26,16 +26,20 @@ from typing import Any, NoReturn
 
 import numpy as np
 
-from . import __version__
+from . import __version__, model
 from .complexity import shape_complexity
 from .constants import (
+    DRACO_ALPHA,
+    DRACO_CONNECTIVITY_BITS,
     DUPLICATES,
     ESTIMATORS,
     FORMAT_MAX_BITS,
     GRIDS,
     HAUSDORFF_REFINE_BUDGET,
     MAX_BITS,
+    MODEL_MIN_VERTICES,
 )
+from .encode import fixed_width_size_bits
 from .errors import MeshbitsError
 from .hausdorff import hausdorff
 from .io import check_writable, example_mesh_path, load_mesh, save_mesh
@@ -344,7 +348,6 @@ def _budget_text(args: argparse.Namespace) -> str:
 
 def _run_compress(args: argparse.Namespace) -> int:
     from .compress import compress
-    from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS
 
     if args.relative and args.error is None:
         raise UserError("--relative applies to --error only")
@@ -684,16 +687,29 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
         help="--error is a fraction of S, the largest bounding-box side",
     )
     p.add_argument(
+        "--format",
+        choices=("draco", "glb", "ply"),
+        default="draco",
+        help="the output whose size is modelled: draco (default) for compress's .drc and "
+        ".glb/.gltf with the Draco codec, F = (3 alpha B + T) V with Draco's fitted "
+        "alpha = 0.595, T = 0, compress's own first plan; ply (compress -o x.ply) and glb "
+        "(quantized positions without a codec, compress(format='glb') in Python) store "
+        "fixed-width positions, so B costs nothing up to the format's most (24, 16) and the "
+        "budget buys V. The meshopt codec has no size model here",
+    )
+    p.add_argument(
         "--alpha",
         type=_positive_number,
-        default=1.0,
-        help="coordinate compression, bits per coordinate bit, in (0, 1] (default 1)",
+        default=None,
+        help="draco: size model alpha, bits per coordinate bit, in (0, 1] "
+        "(default: fitted to Draco, 0.595; the paper's is 1)",
     )
     p.add_argument(
         "--connectivity-bits",
         type=float,
-        default=4.0,
-        help="T, bits per vertex for connectivity, >= 0 (default 4)",
+        default=None,
+        help="draco: size model T, bits per vertex for connectivity, >= 0 "
+        "(default: fitted to Draco, 0; the paper's is 4)",
     )
     p.add_argument(
         "--method",
@@ -721,10 +737,19 @@ def _run_plan(args: argparse.Namespace) -> int:
     k, grid_size = report["k"], report["grid_size"]
     if k is None or not k > 0:
         raise UserError(f"K of {args.mesh} is {k}: a flat or open mesh has no plan")
+    if args.format != "draco":
+        if args.alpha is not None or args.connectivity_bits is not None:
+            raise UserError(
+                f"--alpha and --connectivity-bits model Draco; --format {args.format} stores "
+                "fixed-width positions"
+            )
+        return _plan_fixed_width(args, report)
     options = {
         "grid_size": grid_size,
-        "alpha": args.alpha,
-        "connectivity_bits": args.connectivity_bits,
+        "alpha": DRACO_ALPHA if args.alpha is None else args.alpha,
+        "connectivity_bits": (
+            DRACO_CONNECTIVITY_BITS if args.connectivity_bits is None else args.connectivity_bits
+        ),
         "method": args.method,
         "b0": args.b0,
     }
@@ -812,6 +837,83 @@ def _run_plan(args: argparse.Namespace) -> int:
         print(f"  note: the mesh has only {report['vertices']} vertices")
     if not plan.in_model_domain:
         print(f"  warning: outside the model's domain: {plan.domain_reason}")
+    return EXIT_OK
+
+
+def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
+    """``plan --format glb|ply``: positions stored in fixed-width fields cost the same at
+    every ``B`` up to the format's most, so ``B`` is that most and the budget buys ``V``
+    (sizes from :func:`meshbits.encode.fixed_width_size_bits`, errors from Eq. 2 and 10)."""
+    k, grid_size, fmt = report["k"], report["grid_size"], args.format
+    bits = FORMAT_MAX_BITS[fmt]
+    faces_per_vertex = report["faces"] / max(report["vertices"], 1)
+
+    def size_at(v: float) -> float:
+        return fixed_width_size_bits(fmt, bits, v, v * faces_per_vertex)
+
+    quantization = float(model.quantization_error(bits, grid_size))
+    if args.size is not None:
+        budget_text, budget = args.size, parse_size(args.size)
+        if budget < size_at(MODEL_MIN_VERTICES):
+            raise UserError(
+                f"--size {args.size} cannot hold a tetrahedron in {fmt}: the smallest is "
+                f"{size_at(MODEL_MIN_VERTICES) / 8:,.0f} bytes"
+            )
+        lo, hi = MODEL_MIN_VERTICES, budget  # size_at is increasing in V
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if size_at(mid) <= budget else (lo, mid)
+        vertices = lo
+    elif args.error is not None:
+        error = args.error * grid_size if args.relative else args.error
+        budget_text = f"{args.error:g}" + (" x S" if args.relative else " (mesh units)")
+        if error <= quantization:
+            raise UserError(
+                f"--error {args.error:g} is not above {fmt}'s quantization error at {bits} "
+                f"bits, {quantization:.4g} (mesh units)"
+            )
+        if error >= grid_size:
+            raise UserError(f"--error is not below the grid size S = {grid_size:.6g}")
+        vertices = float(model.vertices_for_error(error - quantization, k, grid_size))
+    else:
+        budget_text, vertices = f"{args.vertices:g}", float(args.vertices)
+    tessellation = float(model.tessellation_error(vertices, k, grid_size))
+    plan = {
+        "format": fmt,
+        "constraint": "size" if args.size else "error" if args.error else "vertices",
+        "budget": budget_text,
+        "bits": bits,
+        "vertices": vertices,
+        "file_size": size_at(vertices),
+        "quantization_error": quantization,
+        "tessellation_error": tessellation,
+        "error": quantization + tessellation,
+        "k": k,
+        "grid_size": grid_size,
+    }
+    if args.json:
+        _print_json({"mesh": report["mesh"], "mesh_vertices": report["vertices"], **plan})
+        return EXIT_OK
+    print(f"{report['mesh']}: {report['vertices']} vertices, {report['faces']} faces")
+    print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} (mesh units)")
+    print(f"  constraint: {plan['constraint']} = {budget_text} ({fmt}: fixed-width positions)")
+    _print_table(
+        f"  {fmt} stores any B up to {bits} in the same bytes: B = {bits}",
+        [
+            ("V", f"{vertices:.1f}"),
+            ("F (bits)", f"{plan['file_size']:.6g}"),
+            ("E_Q (mesh units)", f"{quantization:.4g}"),
+            ("E_T (mesh units)", f"{tessellation:.4g}"),
+            ("E (mesh units)", f"{plan['error']:.4g}"),
+            ("E/S", f"{plan['error'] / grid_size:.4g}"),
+        ],
+    )
+    print(
+        f"  plan: keep about {round(vertices)} vertices at {bits} bits per coordinate "
+        f"({plan['file_size'] / 8000:.4g} kB)"
+    )
+    if vertices > report["vertices"]:
+        print(f"  note: the mesh has only {report['vertices']} vertices")
     return EXIT_OK
 
 
@@ -1014,14 +1116,16 @@ def _add_plot(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--alpha",
         type=_positive_number,
-        default=1.0,
-        help="coordinate compression, bits per coordinate bit, in (0, 1] (default 1)",
+        default=DRACO_ALPHA,
+        help="size model alpha, bits per coordinate bit, in (0, 1] "
+        f"(default: fitted to Draco, {DRACO_ALPHA}; the paper's is 1)",
     )
     p.add_argument(
         "--connectivity-bits",
         type=float,
-        default=4.0,
-        help="T, bits per vertex for connectivity, >= 0 (default 4)",
+        default=DRACO_CONNECTIVITY_BITS,
+        help="size model T, bits per vertex for connectivity, >= 0 "
+        f"(default: fitted to Draco, {DRACO_CONNECTIVITY_BITS:g}; the paper's is 4)",
     )
     p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere", help="estimator of K")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -1037,7 +1141,7 @@ def _run_plot(args: argparse.Namespace) -> int:
     k = shape_complexity(vertices, faces, estimator=args.estimator)
     n = len(np.unique(np.asarray(faces).ravel()))
     plan = plan_for_vertices(
-        max(n, 4), k.k, alpha=args.alpha, connectivity_bits=args.connectivity_bits
+        max(n, 4), k.k, alpha=args.alpha, connectivity_bits=args.connectivity_bits, grid_size=1.0
     )
     low = max(4.0, min(n / 100.0, 100.0))
     high = max(100.0 * n, 10.0 * low)

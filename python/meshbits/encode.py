@@ -8,6 +8,7 @@ such encodings on a mesh, so that later plans predict real bytes.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -32,6 +33,7 @@ __all__ = [
     "encode_quantized_glb",
     "encode_quantized_ply",
     "fit_size_model",
+    "fixed_width_size_bits",
 ]
 
 #: Output formats by file extension.
@@ -304,6 +306,44 @@ def encode(mesh: MeshLike, bits: int, *, format: str = "draco", **grid: Any) -> 
     if format == "ply":
         return encode_quantized_ply(mesh, bits, **grid)
     raise MeshbitsError(f"format must be 'draco', 'glb' or 'ply', got {format!r}")
+
+
+def fixed_width_size_bits(format: str, bits: int, vertices: float, faces: float) -> float:
+    """Size in bits of :func:`encode` in a fixed-width ``format`` (``"glb"`` or ``"ply"``)
+    for a mesh of ``vertices`` referenced vertices and ``faces`` triangles.
+
+    These formats store every vertex and face in a fixed number of bytes, so the size is
+    ``header + V * vertex_bytes + F * face_bytes`` and depends on ``B`` only through the
+    component type: glb positions take 4 bytes (``B <= 8``) or 8 (``B <= 16``) per vertex
+    and its indices 2 bytes per corner below 65,536 vertices, else 4; ply takes 12 bytes
+    per vertex (float32) and 13 per face. The header is measured by encoding a
+    tetrahedron in the format. Exact up to the few digits of the header's byte counts.
+    """
+    bits = _check_bits(bits, FORMAT_MAX_BITS.get(format, 0) or 1)
+    if format not in ("glb", "ply"):
+        raise MeshbitsError(f"format must be 'glb' or 'ply' (fixed width), got {format!r}")
+    vertex_bytes, face_bytes = _fixed_width_record(format, bits, vertices)
+    return 8.0 * (_fixed_width_header(format, bits) + vertices * vertex_bytes + faces * face_bytes)
+
+
+def _fixed_width_record(format: str, bits: int, vertices: float) -> tuple[int, int]:
+    if format == "ply":
+        return 12, 13
+    return (4 if bits <= 8 else 8), 3 * (2 if vertices < 65536 else 4)
+
+
+@functools.lru_cache(maxsize=64)
+def _fixed_width_header(format: str, bits: int) -> int:
+    tetrahedron = (
+        np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]),
+        np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]),
+    )
+    encoded = encode(tetrahedron, bits, format=format)
+    vertex_bytes, face_bytes = _fixed_width_record(format, bits, 4)
+    payload = 4 * vertex_bytes + len(_padded(b"\0" * (4 * face_bytes)))
+    if format == "ply":
+        payload = 4 * vertex_bytes + 4 * face_bytes
+    return encoded.size_bits // 8 - payload
 
 
 @dataclass(frozen=True)

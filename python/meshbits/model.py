@@ -4,9 +4,14 @@ Given the shape complexity ``K`` of a mesh and one constraint (a file size ``F``
 ``E`` or a vertex count ``V``), find the bits per coordinate ``B`` and the vertex count
 ``V`` that minimise the predicted error for the size, or the size for the error.
 
-Units: sizes in bits, errors in the length unit of the grid size ``S`` (the side of the
-quantization cube; every error function takes ``grid_size`` and scales by it, default 1 so
-errors are relative to ``S``), ``K`` dimensionless (grid-normalised, ``ShapeComplexity.k``).
+Units: sizes in bits; errors are lengths in the unit of the grid size ``S`` (the side of
+the quantization cube), which every error function and plan requires as ``grid_size``:
+pass the mesh's ``ShapeComplexity.grid_size`` for errors in mesh units (as ``compress``
+and ``hausdorff`` take them), or 1.0 for errors as fractions of ``S`` (what
+``relative=True`` means elsewhere). ``K`` is dimensionless (grid-normalised,
+``ShapeComplexity.k``). The size model ``F = (3 alpha B + T) V`` defaults to Draco's
+fitted ``alpha = 0.595, T = 0`` (``compress``'s default too); the paper's is
+``alpha = 1, T = 4``.
 The derivation, with the paper's equation numbers and the places where its print is
 wrong, and the reference numbers, are in ``docs/model.md``.
 
@@ -35,6 +40,8 @@ from typing import Any
 import numpy as np
 
 from .constants import (
+    DRACO_ALPHA,
+    DRACO_CONNECTIVITY_BITS,
     MODEL_MIN_BITS,
     MODEL_MIN_SPHERE_VERTICES,
     MODEL_MIN_VERTICES,
@@ -265,7 +272,11 @@ def _check_plan_bits(bits: float, budget: str) -> float:
 
 
 def file_size(
-    bits: Any, vertices: Any, *, alpha: Any = 1.0, connectivity_bits: Any = 4.0
+    bits: Any,
+    vertices: Any,
+    *,
+    alpha: Any = DRACO_ALPHA,
+    connectivity_bits: Any = DRACO_CONNECTIVITY_BITS,
 ) -> float | np.ndarray:
     """File size ``F = (3 alpha B + T) V`` in bits (paper Eq. 1).
 
@@ -276,10 +287,11 @@ def file_size(
     vertices : float or array_like
         ``V``, vertex count (>= 0).
     alpha : float or array_like
-        Compression factor on coordinates, in ``(0, 1]`` (1: none; 1/3: a good predictive
-        coder).
+        Compression factor on coordinates, in ``(0, 1]`` (1: none, the paper's; 1/3: a
+        good predictive coder). Default: Draco's fitted 0.595.
     connectivity_bits : float or array_like
-        ``T``, connectivity bits per vertex (>= 0; 4 is 2 bits per triangle).
+        ``T``, connectivity bits per vertex (>= 0; the paper's 4 is 2 bits per triangle).
+        Default: Draco's fitted 0.
 
     Returns
     -------
@@ -293,7 +305,7 @@ def file_size(
     return _out((3.0 * a * b + t) * v)
 
 
-def quantization_error(bits: Any, grid_size: Any = 1.0) -> float | np.ndarray:
+def quantization_error(bits: Any, grid_size: Any) -> float | np.ndarray:
     """Quantization error ``E_Q = (sqrt(3)/2) S 2^-B`` (paper Eq. 2).
 
     The farthest a point moves when snapped to a cube grid of side ``S`` with ``2^B`` cells
@@ -305,7 +317,9 @@ def quantization_error(bits: Any, grid_size: Any = 1.0) -> float | np.ndarray:
     bits : float or array_like
         ``B``, bits per coordinate (>= 0).
     grid_size : float or array_like
-        ``S`` (length, > 0).
+        ``S`` (length, > 0), required: every error in and out is a length in its unit.
+        Pass the mesh's ``ShapeComplexity.grid_size`` for errors in mesh units, or 1.0 for
+        errors as fractions of ``S``.
 
     Returns
     -------
@@ -334,7 +348,7 @@ def sphere_vertices(vertices: Any, k: Any) -> float | np.ndarray:
     return _out(4.0 * math.pi * v / kk)
 
 
-def tessellation_error(vertices: Any, k: Any, grid_size: Any = 1.0) -> float | np.ndarray:
+def tessellation_error(vertices: Any, k: Any, grid_size: Any) -> float | np.ndarray:
     """Tessellation error ``E_T`` of ``V`` vertices on a shape of complexity ``K``.
 
     Eq. 10 on a sphere of radius ``S`` with ``V_S = 4 pi V / K`` vertices (Eq. 7)::
@@ -355,7 +369,9 @@ def tessellation_error(vertices: Any, k: Any, grid_size: Any = 1.0) -> float | n
     k : float or array_like
         ``K``, grid-normalised shape complexity (dimensionless, > 0).
     grid_size : float or array_like
-        ``S`` (length, > 0).
+        ``S`` (length, > 0), required: every error in and out is a length in its unit.
+        Pass the mesh's ``ShapeComplexity.grid_size`` for errors in mesh units, or 1.0 for
+        errors as fractions of ``S``.
 
     Returns
     -------
@@ -368,7 +384,7 @@ def tessellation_error(vertices: Any, k: Any, grid_size: Any = 1.0) -> float | n
     return _out(s * _tessellation_relative(_theta(v, kk)))
 
 
-def error(bits: Any, vertices: Any, k: Any, grid_size: Any = 1.0) -> float | np.ndarray:
+def error(bits: Any, vertices: Any, k: Any, grid_size: Any) -> float | np.ndarray:
     """Predicted error ``E = E_Q(B) + E_T(V)`` (paper Eq. 3, the bound taken as equality).
 
     Parameters are those of :func:`quantization_error` and :func:`tessellation_error`;
@@ -380,7 +396,7 @@ def error(bits: Any, vertices: Any, k: Any, grid_size: Any = 1.0) -> float | np.
     )
 
 
-def vertices_for_error(error: Any, k: Any, grid_size: Any = 1.0) -> float | np.ndarray:
+def vertices_for_error(error: Any, k: Any, grid_size: Any) -> float | np.ndarray:
     """Vertex count whose tessellation error is ``error``: the exact inverse of
     :func:`tessellation_error` (paper Eq. 17, 18).
 
@@ -394,7 +410,9 @@ def vertices_for_error(error: Any, k: Any, grid_size: Any = 1.0) -> float | np.n
     k : float or array_like
         ``K``, grid-normalised shape complexity (dimensionless, > 0).
     grid_size : float or array_like
-        ``S`` (length, > 0).
+        ``S`` (length, > 0), required: every error in and out is a length in its unit.
+        Pass the mesh's ``ShapeComplexity.grid_size`` for errors in mesh units, or 1.0 for
+        errors as fractions of ``S``.
 
     Returns
     -------
@@ -418,8 +436,8 @@ def optimal_bits(
     vertices: Any,
     k: Any,
     *,
-    alpha: Any = 1.0,
-    connectivity_bits: Any = 4.0,
+    alpha: Any = DRACO_ALPHA,
+    connectivity_bits: Any = DRACO_CONNECTIVITY_BITS,
     exact: bool = True,
     b0: float | str = "derived",
 ) -> float | np.ndarray:
@@ -444,9 +462,9 @@ def optimal_bits(
     k : float or array_like
         ``K``, grid-normalised shape complexity (dimensionless, > 0).
     alpha : float or array_like
-        Coordinate compression factor in ``(0, 1]``.
+        Coordinate compression factor in ``(0, 1]`` (default Draco's fitted 0.595).
     connectivity_bits : float or array_like
-        ``T`` (bits per vertex, >= 0).
+        ``T`` (bits per vertex, >= 0; default Draco's fitted 0).
     exact : bool
         Solve Eq. 12 (default) or the asymptotic Eq. 13.
     b0 : {"derived", "paper"} or float
@@ -476,7 +494,7 @@ def optimal_bits(
     return _out(bits)
 
 
-def guaranteed_bits(error: Any, grid_size: Any = 1.0) -> int | np.ndarray:
+def guaranteed_bits(error: Any, grid_size: Any) -> int | np.ndarray:
     """Smallest ``B`` whose quantization alone never moves a point more than ``error``.
 
     A grid of ``2^B`` codes per axis over a cube of side ``S`` has cells of side
@@ -494,7 +512,9 @@ def guaranteed_bits(error: Any, grid_size: Any = 1.0) -> int | np.ndarray:
     error : float or array_like
         ``E``, the largest allowed displacement (length unit of ``S``, > 0).
     grid_size : float or array_like
-        ``S`` (length, > 0).
+        ``S`` (length, > 0), required: every error in and out is a length in its unit.
+        Pass the mesh's ``ShapeComplexity.grid_size`` for errors in mesh units, or 1.0 for
+        errors as fractions of ``S``.
 
     Returns
     -------
@@ -708,9 +728,9 @@ def plan_for_size(
     size_bits: Any,
     k: Any,
     *,
-    grid_size: Any = 1.0,
-    alpha: Any = 1.0,
-    connectivity_bits: Any = 4.0,
+    grid_size: Any,
+    alpha: Any = DRACO_ALPHA,
+    connectivity_bits: Any = DRACO_CONNECTIVITY_BITS,
     method: str = "exact",
     b0: float | str = "derived",
 ) -> Allocation:
@@ -734,11 +754,16 @@ def plan_for_size(
     k : float
         ``K``, grid-normalised shape complexity (dimensionless, > 0).
     grid_size : float
-        ``S`` (length, > 0): the unit of the errors reported.
+        ``S`` (length, > 0), required: every error in and out is a length in its unit.
+        Pass the mesh's ``ShapeComplexity.grid_size`` for errors in mesh units, or 1.0 for
+        errors as fractions of ``S``.
     alpha : float
-        Coordinate compression factor in ``(0, 1]``.
+        Coordinate compression factor in ``(0, 1]``. Default: Draco's fitted 0.595
+        (``constants.DRACO_ALPHA``), the size model ``compress`` starts from; the paper's
+        uncompressed coordinates are ``alpha=1``.
     connectivity_bits : float
-        ``T`` (bits per vertex, >= 0).
+        ``T`` (bits per vertex, >= 0). Default: Draco's fitted 0
+        (``constants.DRACO_CONNECTIVITY_BITS``); the paper's is 4.
     method : {"exact", "asymptotic"}
     b0 : {"derived", "paper"} or float
         ``B0`` (bits) for ``method="asymptotic"``; ignored by ``"exact"``.
@@ -787,9 +812,9 @@ def plan_for_error(
     error: Any,
     k: Any,
     *,
-    grid_size: Any = 1.0,
-    alpha: Any = 1.0,
-    connectivity_bits: Any = 4.0,
+    grid_size: Any,
+    alpha: Any = DRACO_ALPHA,
+    connectivity_bits: Any = DRACO_CONNECTIVITY_BITS,
     method: str = "exact",
     b0: float | str = "derived",
 ) -> Allocation:
@@ -874,9 +899,9 @@ def plan_for_vertices(
     vertices: Any,
     k: Any,
     *,
-    grid_size: Any = 1.0,
-    alpha: Any = 1.0,
-    connectivity_bits: Any = 4.0,
+    grid_size: Any,
+    alpha: Any = DRACO_ALPHA,
+    connectivity_bits: Any = DRACO_CONNECTIVITY_BITS,
     method: str = "exact",
     b0: float | str = "derived",
 ) -> Allocation:

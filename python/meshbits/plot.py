@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from . import model
-from .constants import MODEL_MIN_VERTICES
+from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, MODEL_MIN_VERTICES
 from .errors import MeshbitsError
 from .io import write_atomic
 from .mesh import MeshLike, as_mesh
@@ -66,8 +66,8 @@ def error_surface(
     k: float,
     *,
     grid_size: float = 1.0,
-    alpha: float = 1.0,
-    connectivity_bits: float = 4.0,
+    alpha: float = DRACO_ALPHA,
+    connectivity_bits: float = DRACO_CONNECTIVITY_BITS,
     vertices: Sequence[float] = (1e2, 1e6),
     bits: Sequence[float] = (2.0, 20.0),
     points: Sequence[tuple[float, float, str]] = (),
@@ -92,8 +92,9 @@ def error_surface(
     k : float
         ``K``, grid-normalised shape complexity (dimensionless, > 0).
     grid_size, alpha, connectivity_bits : float
-        ``S`` (length), ``alpha`` in (0, 1], ``T`` (bits per vertex), as in
-        :mod:`meshbits.model`.
+        ``S`` (length; the default 1 draws errors as fractions of ``S``), ``alpha`` in
+        (0, 1], ``T`` (bits per vertex), as in :mod:`meshbits.model` (default Draco's
+        fitted 0.595 and 0, as ``compress``; the paper's are 1 and 4).
     vertices : (float, float)
         Range of ``V`` (log axis), ``4 <= low < high``.
     bits : (float, float)
