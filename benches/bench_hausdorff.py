@@ -287,7 +287,7 @@ def bounds_and_traps() -> None:
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     raw = trimesh.load(BUNNY, process=False)
     bunny = (np.asarray(raw.vertices), np.asarray(raw.faces))
-    clustered = meshbits.cluster(bunny, 8)
+    clustered = meshbits.cluster(bunny, bits=8)
     size = float(np.ptp(bunny[0], axis=0).max())
     sphere = bumpy_icosphere(8)
     cases = [

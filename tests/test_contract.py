@@ -292,9 +292,9 @@ def test_every_public_result_has_a_json_ready_to_dict(bunny):
         meshbits.surface_samples(small, samples=100),
         encode_draco(small, 10),
         meshbits.quantize(small[0], 8),
-        meshbits.cluster(small, 6),
+        meshbits.cluster(small, bits=6),
         meshbits.shape_complexity(small, per_edge=True),
-        meshbits.hausdorff(small, meshbits.cluster(small, 6), samples=500),
+        meshbits.hausdorff(small, meshbits.cluster(small, bits=6), samples=500),
         meshbits.compress(small, vertices=200),
     ]
     for result in results:
@@ -309,7 +309,7 @@ def test_results_holding_arrays_compare_by_value():
     small = meshbits.load_mesh(SMALL)
     pairs = [
         (lambda: meshbits.quantize(small[0], 8), lambda: meshbits.quantize(small[0], 9)),
-        (lambda: meshbits.cluster(small, 6), lambda: meshbits.cluster(small, 7)),
+        (lambda: meshbits.cluster(small, bits=6), lambda: meshbits.cluster(small, bits=7)),
         (
             lambda: meshbits.ClosestPoints(small).query(small[0][:20] + 0.01),
             lambda: meshbits.ClosestPoints(small).query(small[0][:20] + 0.02),
@@ -324,8 +324,8 @@ def test_results_holding_arrays_compare_by_value():
             lambda: meshbits.shape_complexity(small, per_edge=True, estimator="dihedral"),
         ),
         (
-            lambda: meshbits.hausdorff(small, meshbits.cluster(small, 6), samples=300),
-            lambda: meshbits.hausdorff(small, meshbits.cluster(small, 5), samples=300),
+            lambda: meshbits.hausdorff(small, meshbits.cluster(small, bits=6), samples=300),
+            lambda: meshbits.hausdorff(small, meshbits.cluster(small, bits=5), samples=300),
         ),
     ]
     for make, make_other in pairs:
@@ -333,3 +333,46 @@ def test_results_holding_arrays_compare_by_value():
         assert a == b and not (a != b)
         assert a != c and not (a == c)
         assert a != "something else"
+
+
+def test_every_progress_callback_receives_progress_events(tmp_path):
+    """hausdorff's callback got a str and compress's an Iteration: one type now."""
+    small = meshbits.load_mesh(SMALL)
+    events: dict[str, list] = {"hausdorff": [], "compress": [], "compress_scene": []}
+    meshbits.hausdorff(
+        small, meshbits.cluster(small, bits=6), samples=500, progress=events["hausdorff"].append
+    )
+    result = meshbits.compress(small, error=0.01, relative=True, progress=events["compress"].append)
+    scene_path = tmp_path / "small.glb"
+    trimesh.Trimesh(*small).export(scene_path)
+    meshbits.compress_scene(
+        scene_path, error=0.01, relative=True, progress=events["compress_scene"].append
+    )
+    for source, seen in events.items():
+        assert seen and all(isinstance(event, meshbits.Progress) for event in seen), source
+        assert all(event.source == source and str(event) == event.message for event in seen)
+        assert all(json.dumps(event.to_dict()) for event in seen)
+    assert [event.detail for event in events["compress"]] == list(result.iterations)
+    assert "B = " in events["compress"][0].message and "bytes" in events["compress"][0].message
+
+
+class _Open3DLike:
+    """Open3D's legacy TriangleMesh interface: ``vertices`` and ``triangles`` vectors."""
+
+    def __init__(self, vertices: np.ndarray, triangles: np.ndarray) -> None:
+        self.vertices = [tuple(row) for row in vertices]
+        self.triangles = [tuple(row) for row in triangles]
+
+
+def test_an_open3d_triangle_mesh_is_a_mesh():
+    """An Open3D TriangleMesh was refused: 'expected a trimesh.Trimesh ...'."""
+    vertices, faces = meshbits.load_mesh(SMALL)
+    expected = meshbits.shape_complexity((vertices, faces))
+    assert meshbits.shape_complexity(_Open3DLike(vertices, faces)) == expected
+    o3d = pytest.importorskip("open3d")
+    legacy = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(vertices), o3d.utility.Vector3iVector(faces)
+    )
+    assert meshbits.shape_complexity(legacy) == expected
+    tensor = o3d.t.geometry.TriangleMesh.from_legacy(legacy, vertex_dtype=o3d.core.float64)
+    assert meshbits.shape_complexity(tensor) == expected

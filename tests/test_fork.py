@@ -29,9 +29,9 @@ def _kernels(mesh: tuple[np.ndarray, np.ndarray]) -> dict[str, Callable[[], Any]
     return {
         "shape_complexity": lambda: meshbits.shape_complexity(mesh).k,
         "quantize": lambda: meshbits.quantize(vertices, 10).codes.sum(dtype=np.int64),
-        "cluster": lambda: meshbits.cluster(mesh, 8).faces.shape,
+        "cluster": lambda: meshbits.cluster(mesh, bits=8).faces.shape,
         "hausdorff": lambda: (
-            meshbits.hausdorff(mesh, meshbits.cluster(mesh, 9), samples=20_000).distance
+            meshbits.hausdorff(mesh, meshbits.cluster(mesh, bits=9), samples=20_000).distance
         ),
         "closest_points": lambda: float(
             meshbits.ClosestPoints(mesh).query(vertices[:5000] + 0.001).distances.sum()

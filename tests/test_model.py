@@ -747,7 +747,7 @@ def test_guaranteed_bits_bounds_a_real_quantizer():
     ],
 )
 def test_parse_size(text, bits):
-    assert model.parse_size(text) == bits
+    assert meshbits.parse_size(text) == bits
 
 
 @pytest.mark.parametrize(
@@ -765,7 +765,7 @@ def test_parse_size(text, bits):
 )
 def test_parse_size_refuses(text, match):
     with pytest.raises(ValueError, match=match):
-        model.parse_size(text)
+        meshbits.parse_size(text)
 
 
 # --- public names ------------------------------------------------------------------------
@@ -955,3 +955,17 @@ def test_plans_beyond_the_float64_range_are_refused(plan, args, kwargs):
 def test_plans_near_the_float64_range_still_answer():
     plan = model.plan_for_error(1e-300, 10.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
     assert 1000 < plan.bits < model.MODEL_MAX_BITS and math.isfinite(plan.vertices)
+
+
+@pytest.mark.parametrize(
+    ("text", "length"),
+    [("0.002", 0.002), ("1mm", 0.001), (" 0.5 cm", 0.005), ("2in", 0.0508), ("1e-3M", 0.001)],
+)
+def test_parse_length(text, length):
+    assert meshbits.parse_length(text) == pytest.approx(length, rel=1e-12)
+
+
+@pytest.mark.parametrize("text", ["", "mm", "-1mm", "0", "1 parsec", "nan", "inf m"])
+def test_parse_length_refuses(text):
+    with pytest.raises(meshbits.MeshbitsError, match="length"):
+        meshbits.parse_length(text)

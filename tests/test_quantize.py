@@ -414,7 +414,7 @@ def test_quantize_accepts_a_trimesh_and_results_serialise():
 def test_cluster_matches_the_numpy_reference_on_random_meshes(mesh, bits, grid, duplicates):
     vertices, faces = mesh
     assume(not refused_by_underflow(vertices, bits, grid))
-    result = meshbits.cluster(vertices, faces, bits, grid=grid, duplicates=duplicates)
+    result = meshbits.cluster(vertices, faces, bits=bits, grid=grid, duplicates=duplicates)
     assert_same_clustering(result, reference_cluster(vertices, faces, bits, grid, duplicates))
     assert result.input_vertices == (
         result.output_vertices + result.merged_vertices + result.unreferenced_vertices
@@ -441,7 +441,7 @@ def real_meshes():
 @pytest.mark.parametrize("duplicates", ["keep", "any"])
 def test_cluster_matches_the_numpy_reference_on_real_meshes(real_meshes, name, bits, duplicates):
     vertices, faces = real_meshes[name]
-    result = meshbits.cluster(vertices, faces, bits, duplicates=duplicates)
+    result = meshbits.cluster(vertices, faces, bits=bits, duplicates=duplicates)
     expected = reference_cluster(vertices, faces, bits, "cube", duplicates)
     assert_same_clustering(result, expected)
     assert result.merged_vertices > 0  # the comparison is not vacuous
@@ -450,7 +450,7 @@ def test_cluster_matches_the_numpy_reference_on_real_meshes(real_meshes, name, b
 
 def test_cluster_oriented_duplicates_on_a_real_mesh(real_meshes):
     vertices, faces = real_meshes["bunny"]
-    result = meshbits.cluster(vertices, faces, 6, grid="axes", duplicates="oriented")
+    result = meshbits.cluster(vertices, faces, bits=6, grid="axes", duplicates="oriented")
     assert_same_clustering(result, reference_cluster(vertices, faces, 6, "axes", "oriented"))
     assert result.duplicate_faces > 0
 
@@ -458,9 +458,9 @@ def test_cluster_oriented_duplicates_on_a_real_mesh(real_meshes):
 def test_cluster_does_not_depend_on_the_thread_count(real_meshes):
     vertices, faces = real_meshes["horse"]
     with meshbits.threads(1):
-        one = meshbits.cluster(vertices, faces, 9, duplicates="any")
+        one = meshbits.cluster(vertices, faces, bits=9, duplicates="any")
         q1 = meshbits.quantize(vertices, 9)
-    many = meshbits.cluster(vertices, faces, 9, duplicates="any")
+    many = meshbits.cluster(vertices, faces, bits=9, duplicates="any")
     qm = meshbits.quantize(vertices, 9)
     for name in ("vertices", "faces", "codes", "vertex_map", "face_index"):
         np.testing.assert_array_equal(getattr(one, name), getattr(many, name))
@@ -480,13 +480,13 @@ def test_cluster_of_a_thin_sheet_drops_degenerate_and_duplicate_faces():
         b = (a + 1) % 4
         sides += [[a, b, b + 4], [a, b + 4, a + 4]]
     faces = np.array(bottom + top + sides)
-    keep = meshbits.cluster(vertices, faces, 2)
+    keep = meshbits.cluster(vertices, faces, bits=2)
     assert keep.degenerate_faces == 8  # the four thin sides
     assert keep.output_faces == 4 and keep.duplicate_faces == 0
     np.testing.assert_array_equal(keep.vertex_map, [0, 1, 2, 3, 0, 1, 2, 3])
-    oriented = meshbits.cluster(vertices, faces, 2, duplicates="oriented")
+    oriented = meshbits.cluster(vertices, faces, bits=2, duplicates="oriented")
     np.testing.assert_array_equal(oriented.faces, [[0, 2, 1], [0, 3, 2], [0, 1, 2], [0, 2, 3]])
-    anyway = meshbits.cluster(vertices, faces, 2, duplicates="any")
+    anyway = meshbits.cluster(vertices, faces, bits=2, duplicates="any")
     assert anyway.duplicate_faces == 2
     np.testing.assert_array_equal(anyway.faces, bottom)
     np.testing.assert_array_equal(anyway.face_index, [0, 1])
@@ -495,14 +495,14 @@ def test_cluster_of_a_thin_sheet_drops_degenerate_and_duplicate_faces():
 
 def test_cluster_output_lies_on_the_grid_and_nothing_merges_at_high_bits():
     mesh = trimesh.creation.icosphere(subdivisions=3)
-    result = meshbits.cluster(mesh.vertices, mesh.faces, 20)
+    result = meshbits.cluster(mesh.vertices, mesh.faces, bits=20)
     assert result.merged_vertices == result.degenerate_faces == 0
     np.testing.assert_array_equal(result.vertex_map, np.arange(len(mesh.vertices)))
     np.testing.assert_array_equal(result.faces, mesh.faces)
     np.testing.assert_array_equal(
         result.vertices, meshbits.dequantize(result.codes, result.origin, result.step)
     )
-    centered = meshbits.cluster(mesh, 20, convention="centered")
+    centered = meshbits.cluster(mesh, bits=20, convention="centered")
     np.testing.assert_array_equal(centered.vertices, result.vertices)
     # origin + q * step with the shifted origin and codes rounds differently.
     np.testing.assert_allclose(
@@ -515,7 +515,7 @@ def test_cluster_output_lies_on_the_grid_and_nothing_merges_at_high_bits():
 
 def test_cluster_of_identical_points_drops_everything():
     vertices = np.full((4, 3), 2.5)
-    result = meshbits.cluster(vertices, [[0, 1, 2], [1, 2, 3]], 8)
+    result = meshbits.cluster(vertices, [[0, 1, 2], [1, 2, 3]], bits=8)
     assert result.output_vertices == result.output_faces == 0
     assert (result.merged_vertices, result.unreferenced_vertices) == (3, 1)
     assert result.degenerate_faces == 2
@@ -529,9 +529,9 @@ def test_cluster_on_a_shared_box_welds_two_halves_without_cracks():
     left = mesh.submesh([mesh.triangles_center[:, 0] < 0], append=True)
     right = mesh.submesh([mesh.triangles_center[:, 0] >= 0], append=True)
     box = (mesh.vertices.min(axis=0), mesh.vertices.max(axis=0))
-    a = meshbits.cluster(left, 7, box=box)
-    b = meshbits.cluster(right, 7, box=box)
-    whole = meshbits.cluster(mesh, 7)
+    a = meshbits.cluster(left, bits=7, box=box)
+    b = meshbits.cluster(right, bits=7, box=box)
+    whole = meshbits.cluster(mesh, bits=7)
     seam = set(map(tuple, a.vertices)) & set(map(tuple, b.vertices))
     assert len(seam) > 10
     union = set(map(tuple, a.vertices)) | set(map(tuple, b.vertices))
@@ -552,7 +552,10 @@ def test_cluster_on_a_shared_box_welds_two_halves_without_cracks():
             ValueError,
             "not finite",
         ),
-        ((np.zeros((3, 3)), [[0, 1, 2]]), {}, TypeError, "needs bits"),
+        ((np.zeros((3, 3)), [[0, 1, 2]]), {}, TypeError, "bits"),
+        # cluster(mesh, 8) read 8 as faces, or as bits: bits is keyword-only
+        ((np.zeros((3, 3)), 8), {}, TypeError, "keyword-only"),
+        ((np.zeros((3, 3)), [[0, 1, 2]], 8, "cube"), {}, TypeError, "positional"),
         ((np.zeros((3, 3)), [[0, 1, 2]], 40), {}, ValueError, "bits must be"),
         ((np.zeros((3, 3)), [[0, 1, 2]], 8), {"duplicates": "some"}, ValueError, "duplicates"),
         (
@@ -565,6 +568,8 @@ def test_cluster_on_a_shared_box_welds_two_halves_without_cracks():
     ],
 )
 def test_cluster_refuses_bad_input(args, kwargs, error, match):
+    if len(args) == 3:  # (vertices, faces, bits)
+        args, kwargs = args[:2], {"bits": args[2], **kwargs}
     with pytest.raises(error, match=match):
         meshbits.cluster(*args, **kwargs)
 
@@ -603,7 +608,7 @@ def test_cli_quantize_writes_the_clustered_mesh(tmp_path, capsys):
     assert main(["quantize", str(DATA / "bunny.ply"), "--bits", "8", "-o", str(out), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     vertices, faces = meshbits.load_mesh(DATA / "bunny.ply")
-    result = meshbits.cluster(vertices, faces, 8)
+    result = meshbits.cluster(vertices, faces, bits=8)
     assert report["output_faces"] == result.output_faces
     assert report["output_vertices"] == result.output_vertices
     assert report["degenerate_faces"] == result.degenerate_faces

@@ -38,9 +38,11 @@ from .quantize import (
     precision_bits,
     quantize,
 )
+from .results import Progress
 from .scene import SceneResult, compress_scene
 from .simplify import Simplified, simplify
 from .threads import get_num_threads, set_num_threads, threads
+from .units import parse_length, parse_size
 
 __version__: str = _core.__version__
 
@@ -54,6 +56,7 @@ __all__ = [
     "Hausdorff",
     "Iteration",
     "MeshbitsError",
+    "Progress",
     "Quantized",
     "Reference",
     "SceneResult",
@@ -72,6 +75,8 @@ __all__ = [
     "hausdorff",
     "load_mesh",
     "model",
+    "parse_length",
+    "parse_size",
     "plan_for_error",
     "plan_for_size",
     "plan_for_vertices",

@@ -43,9 +43,10 @@ from .encode import fixed_width_size_bits
 from .errors import MeshbitsError
 from .hausdorff import hausdorff
 from .io import check_writable, example_mesh_path, load_mesh, save_mesh
-from .model import METHODS, parse_size, plan_for_error, plan_for_size, plan_for_vertices
+from .model import METHODS, plan_for_error, plan_for_size, plan_for_vertices
 from .quantize import cluster
-from .results import json_ready
+from .results import Progress, json_ready
+from .units import parse_length, parse_size
 
 __all__ = ["main"]
 
@@ -71,25 +72,13 @@ def _positive_number(text: str) -> float:
     return value
 
 
-#: Length units of ``--error``, in meters (glTF's unit).
-_LENGTH_UNITS = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0, "km": 1e3, "in": 0.0254, "ft": 0.3048}
-
-
 def _length(text: str) -> float:
     """An argparse type: a positive length, plain (the file's units) or with a unit
     (meters, glTF's unit: 1mm = 0.001)."""
-    stripped = text.strip()
-    for unit in sorted(_LENGTH_UNITS, key=len, reverse=True):
-        if stripped.lower().endswith(unit) and stripped[: -len(unit)].strip():
-            number = stripped[: -len(unit)].strip()
-            try:
-                value = float(number) * _LENGTH_UNITS[unit]
-            except ValueError:
-                break
-            if math.isfinite(value) and value > 0:
-                return value
-            raise argparse.ArgumentTypeError(f"must be a positive finite length, got {text!r}")
-    return _positive_number(text)
+    try:
+        return parse_length(text)
+    except MeshbitsError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _count(smallest: int) -> Callable[[str], int]:
@@ -372,15 +361,9 @@ def _run_compress(args: argparse.Namespace) -> int:
     mesh = load_mesh(args.mesh)
     lods = [load_mesh(path) for path in args.lods] if args.lods else None
 
-    def report(it: Any) -> None:
+    def report(event: Progress) -> None:
         if not args.quiet:
-            print(
-                f"  pass: {it.source} mesh, B = {it.bits}, V = {it.vertices}; "
-                f"error {it.measured_error:.4g} (model {it.predicted_error:.4g}), "
-                f"{it.measured_size_bits // 8} bytes (model {it.predicted_size_bits / 8:.0f})"
-                f"{'' if it.met else ': misses the budget'}",
-                file=sys.stderr,
-            )
+            print(f"  {event}", file=sys.stderr)
 
     result = compress(
         mesh,
@@ -465,9 +448,9 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     _output(args.output)
     _input(args.mesh)
 
-    def report(line: str) -> None:
+    def report(event: Progress) -> None:
         if not args.quiet:
-            print(f"  {line}", file=sys.stderr)
+            print(f"  {event}", file=sys.stderr)
 
     result = compress_scene(
         args.mesh,
@@ -969,7 +952,7 @@ def _add_hausdorff(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_run_hausdorff)
 
 
-def _progress(message: str) -> None:
+def _progress(message: object) -> None:
     print(f"meshbits hausdorff: {message}", file=sys.stderr, flush=True)
 
 
@@ -1050,7 +1033,7 @@ def _add_quantize(sub: argparse._SubParsersAction) -> None:
 def _run_quantize(args: argparse.Namespace) -> int:
     _output(args.output)
     vertices, faces = load_mesh(_input(args.mesh))
-    result = cluster(vertices, faces, args.bits, grid=args.grid, duplicates=args.duplicates)
+    result = cluster(vertices, faces, bits=args.bits, grid=args.grid, duplicates=args.duplicates)
     if args.output is not None:
         if result.output_faces == 0:
             raise UserError(

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import numbers
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,7 +33,7 @@ from .hausdorff import Reference, default_samples
 from .io import write_atomic
 from .mesh import MeshLike, as_mesh
 from .quantize import precision_bits
-from .results import ArrayResult
+from .results import ArrayResult, ProgressCallback
 from .search import Iteration, Search, run_search
 from .simplify import METHODS, Simplifier, check_untangled, referenced_vertex_count
 
@@ -198,7 +198,7 @@ def compress(
     seed: int = 0,
     estimator: str = "circumsphere",
     certify: bool = False,
-    progress: Callable[[Iteration], None] | None = None,
+    progress: ProgressCallback | None = None,
 ) -> CompressResult:
     """Compress a mesh to meet one budget: the fewest bytes within an error budget, the
     least error within a size budget (paper Sec. 7, with the search of
@@ -251,7 +251,8 @@ def compress(
         the budget) and count an error budget as met only when that *upper bound* is
         within it. Slower; without it the sampled distance (a lower bound) decides.
     progress
-        Called with each :class:`Iteration` as it completes.
+        Called with a :class:`meshbits.Progress` as each pass completes: ``str(event)``
+        is its line, ``event.detail`` the pass's :class:`Iteration`.
 
     Raises
     ------

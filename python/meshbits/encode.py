@@ -317,7 +317,8 @@ def fixed_width_size_bits(format: str, bits: int, vertices: float, faces: float)
     component type: glb positions take 4 bytes (``B <= 8``) or 8 (``B <= 16``) per vertex
     and its indices 2 bytes per corner below 65,536 vertices, else 4; ply takes 12 bytes
     per vertex (float32) and 13 per face. The header is measured by encoding a
-    tetrahedron in the format. Exact up to the few digits of the header's byte counts.
+    tetrahedron in the format; the JSON numbers of a real header (its box, translation and
+    scale) make it up to about 100 bytes longer or shorter.
     """
     bits = _check_bits(bits, FORMAT_MAX_BITS.get(format, 0) or 1)
     if format not in ("glb", "ply"):

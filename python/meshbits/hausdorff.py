@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 import numbers
 import time
-from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -27,7 +26,7 @@ from .constants import (
 )
 from .errors import MeshbitsError
 from .mesh import MeshLike, as_mesh, as_points
-from .results import ArrayResult
+from .results import ArrayResult, Progress, ProgressCallback
 
 __all__ = [
     "Closest",
@@ -394,7 +393,7 @@ def hausdorff(
     tolerance: float | None = None,
     return_samples: bool = False,
     refine_budget: int = HAUSDORFF_REFINE_BUDGET,
-    progress: Callable[[str], None] | None = None,
+    progress: ProgressCallback | None = None,
 ) -> Hausdorff:
     """Sampled Hausdorff distance between two triangle meshes (paper Sec. 3.2, the error E).
 
@@ -436,7 +435,8 @@ def hausdorff(
         Largest number of refinement points per direction; when it runs out, the
         result has ``converged=False`` and the bounds reached so far.
     progress
-        Called with a one-line message at the start and end of each phase.
+        Called with a :class:`meshbits.Progress` at the start and end of each phase
+        (``str(event)`` is its line).
 
     Returns
     -------
@@ -464,7 +464,11 @@ def hausdorff(
     refine_budget = _check_count(refine_budget, "refine_budget")
     tolerance = _check_tolerance(tolerance)
     bounds = bounds or tolerance is not None
-    say = progress or (lambda _message: None)
+
+    def say(line: str) -> None:
+        if progress is not None:
+            progress(Progress("hausdorff", line))
+
     meshes = {"A": as_mesh(a), "B": as_mesh(b)}
     start = time.perf_counter()
     sizes = {name: f"{len(faces):,}" for name, (_, faces) in meshes.items()}

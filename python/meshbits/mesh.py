@@ -8,18 +8,43 @@ argument, what was expected and what arrived.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _core
 from .errors import MeshbitsError
 
 __all__ = ["MeshLike", "as_mesh", "as_points"]
 
-#: A ``trimesh.Trimesh``, a ``(vertices, faces)`` pair, or any object with ``vertices`` and
-#: ``faces`` attributes.
-MeshLike = Any
+
+class VerticesAndFaces(Protocol):
+    """A ``trimesh.Trimesh``, or any object with ``vertices (n, 3)`` and ``faces (m, 3)``."""
+
+    @property
+    def vertices(self) -> npt.ArrayLike: ...
+
+    @property
+    def faces(self) -> npt.ArrayLike: ...
+
+
+class VerticesAndTriangles(Protocol):
+    """An Open3D ``TriangleMesh`` (``vertices`` and ``triangles``, as Open3D vectors)."""
+
+    @property
+    def vertices(self) -> Any: ...
+
+    @property
+    def triangles(self) -> Any: ...
+
+
+#: What every function that takes a mesh accepts: a ``trimesh.Trimesh`` (or any object
+#: with ``vertices`` and ``faces``), an Open3D ``TriangleMesh`` (legacy or
+#: ``open3d.t.geometry``), or a ``(vertices, faces)`` pair of arrays.
+MeshLike: TypeAlias = (
+    VerticesAndFaces | VerticesAndTriangles | tuple[npt.ArrayLike, npt.ArrayLike] | Any
+)
 
 
 def as_points(
@@ -114,8 +139,9 @@ def as_mesh(
     Parameters
     ----------
     mesh
-        A ``trimesh.Trimesh`` (or any object with ``vertices`` and ``faces``), a
-        ``(vertices, faces)`` pair, or a vertex array when ``faces`` is given.
+        A ``trimesh.Trimesh`` (or any object with ``vertices`` and ``faces``), an Open3D
+        ``TriangleMesh`` (legacy or tensor), a ``(vertices, faces)`` pair, or a vertex
+        array when ``faces`` is given.
     faces
         ``(m, 3)`` integer vertex indices of any integer dtype, C or Fortran order.
     keep_int64
@@ -137,12 +163,17 @@ def as_mesh(
     if faces is None:
         if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
             vertices, faces = mesh.vertices, mesh.faces
+        elif hasattr(mesh, "vertices") and hasattr(mesh, "triangles"):  # Open3D
+            vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.triangles)
+        elif hasattr(mesh, "vertex") and hasattr(mesh, "triangle"):  # open3d.t.geometry
+            vertices = mesh.vertex["positions"].numpy()
+            faces = mesh.triangle["indices"].numpy()
         elif isinstance(mesh, (tuple, list)) and len(mesh) == 2:
             vertices, faces = mesh
         else:
             raise TypeError(
-                "expected a trimesh.Trimesh, a (vertices, faces) pair, or vertices and faces, "
-                f"got {type(mesh).__name__}"
+                "expected a trimesh.Trimesh, an Open3D TriangleMesh, a (vertices, faces) pair, "
+                f"or vertices and faces, got {type(mesh).__name__}"
             )
     else:
         vertices = mesh

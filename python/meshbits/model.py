@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 import numbers
-import re
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -59,7 +58,6 @@ __all__ = [
     "file_size",
     "guaranteed_bits",
     "optimal_bits",
-    "parse_size",
     "plan_for_error",
     "plan_for_size",
     "plan_for_vertices",
@@ -750,7 +748,7 @@ def plan_for_size(
     Parameters
     ----------
     size_bits : float
-        ``F``, the file size budget in bits (see :func:`parse_size` for ``"100KB"``).
+        ``F``, the file size budget in bits (see :func:`meshbits.units.parse_size` for ``"100KB"``).
     k : float
         ``K``, grid-normalised shape complexity (dimensionless, > 0).
     grid_size : float
@@ -954,82 +952,3 @@ def plan_for_vertices(
     price = LN2 * float(_quantization_relative(bits))
     whole = _pick_whole(bits, lambda b: float(_quantization_relative(b)) + price * b)
     return _allocation("vertices", v, p, bits, v, whole, v, bits <= lo)
-
-
-# --- sizes -------------------------------------------------------------------------------
-
-_SIZE = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)(?:[eE]([+-]?\d+))?\s*([A-Za-z]*)\s*$")
-_PREFIXES = {
-    "": 1.0,
-    "k": 1e3,
-    "m": 1e6,
-    "g": 1e9,
-    "t": 1e12,
-    "ki": 2.0**10,
-    "mi": 2.0**20,
-    "gi": 2.0**30,
-    "ti": 2.0**40,
-}
-
-
-def parse_size(text: str) -> float:
-    """Parse a file size such as ``"100KB"``, ``"2MiB"`` or ``"80kbit"`` into bits.
-
-    The unit is required and spelled so that bits and bytes cannot be confused:
-
-    - bytes: ``B`` (upper case), ``byte`` or ``bytes``; 1 byte = 8 bits;
-    - bits: ``bit`` or ``bits``;
-    - a lone lower-case ``b`` (``"100kb"``) and a bare number (``"100"``) are refused.
-
-    Decimal prefixes ``k``, ``M``, ``G``, ``T`` are powers of 1000 and binary prefixes
-    ``Ki``, ``Mi``, ``Gi``, ``Ti`` powers of 1024; prefixes are case-insensitive (a size has
-    no use for milli). Examples: ``"100KB"`` = 800,000 bits, ``"2MiB"`` = 16,777,216 bits,
-    ``"1.5 kbit"`` = 1,500 bits.
-
-    Returns
-    -------
-    float
-        The size in bits (> 0).
-
-    Raises
-    ------
-    ValueError
-        On a missing, ambiguous or unknown unit, or a size that is not positive and finite.
-    """
-    if not isinstance(text, str):
-        raise TypeError(f"size must be a string such as '100KB', got {text!r}")
-    match = _SIZE.match(text)
-    if match is None:
-        raise MeshbitsError(
-            f"cannot read size {text!r}: expected a number and a unit, such as 100KB, 2MiB "
-            "or 80000bits"
-        )
-    mantissa, exponent, unit = match.groups()
-    value = float(mantissa + (f"e{exponent}" if exponent else ""))
-    lowered = unit.lower()
-    for word, bits in (("bits", 1.0), ("bit", 1.0), ("bytes", 8.0), ("byte", 8.0)):
-        if lowered.endswith(word):
-            prefix, per_unit = lowered[: -len(word)], bits
-            break
-    else:
-        if unit.endswith("B"):
-            prefix, per_unit = lowered[:-1], 8.0
-        elif unit.endswith("b"):
-            raise MeshbitsError(
-                f"size {text!r} is ambiguous: lower-case 'b' could mean bits or bytes; write "
-                f"{mantissa}{unit[:-1]}B for bytes or {mantissa}{unit[:-1]}bit for bits"
-            )
-        else:
-            raise MeshbitsError(
-                f"size {text!r} needs a unit: B or bytes (8 bits), or bit/bits, with an "
-                "optional prefix k, M, G, T (1000) or Ki, Mi, Gi, Ti (1024)"
-            )
-    if prefix not in _PREFIXES:
-        raise MeshbitsError(
-            f"size {text!r}: unknown prefix {unit[: len(prefix)]!r} (use k, M, G, T or Ki, Mi, "
-            "Gi, Ti)"
-        )
-    size = value * _PREFIXES[prefix] * per_unit
-    if not (math.isfinite(size) and size > 0):
-        raise MeshbitsError(f"size {text!r} must be positive and finite")
-    return size

@@ -377,8 +377,8 @@ def dequantize(codes: Any, origin: Any, step: Any) -> np.ndarray:
 def cluster(
     mesh_or_vertices: MeshLike,
     faces: Any = None,
-    bits: int | None = None,
     *,
+    bits: int,
     grid: str = "cube",
     box: Any = None,
     convention: str = "corner",
@@ -399,7 +399,8 @@ def cluster(
     faces
         ``(m, 3)`` integer vertex indices when ``mesh_or_vertices`` is an array.
     bits
-        ``B``, an integer from 1 to 32 (``cluster(mesh, 8)`` also works for a mesh).
+        ``B``, an integer from 1 to 32, keyword-only: ``cluster(mesh, bits=8)``,
+        ``cluster(vertices, faces, bits=8)``.
     {grid_doc}
     duplicates
         ``"keep"`` (default): keep repeated faces. ``"oriented"``: drop a face whose
@@ -427,10 +428,10 @@ def cluster(
     TypeError
         Non-numeric vertices, non-integer faces or ``bits``, ``bits`` missing.
     """
-    if bits is None and faces is not None and np.ndim(faces) == 0:
-        bits, faces = faces, None
-    if bits is None:
-        raise TypeError("cluster() needs bits, the bits per coordinate (1 to 32)")
+    if faces is not None and np.ndim(faces) == 0:
+        raise TypeError(
+            f"cluster() got {faces!r} for faces; bits is keyword-only: cluster(mesh, bits=8)"
+        )
     bits = _check_bits(bits)
     grid = _check_choice("grid", grid, GRIDS)
     convention = _check_choice("convention", convention, CONVENTIONS)

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from pathlib import PurePath
 from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["ArrayResult", "json_ready"]
+__all__ = ["ArrayResult", "Progress", "ProgressCallback", "json_ready"]
 
 
 def _equal(a: Any, b: Any) -> bool:
@@ -87,3 +88,35 @@ class ArrayResult:
                 value = value.to_dict(arrays=arrays)
             out[f.name] = json_ready(value)
         return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Progress:
+    """One progress report of a long call (``hausdorff``, ``compress``,
+    ``compress_scene``): every ``progress=`` callback receives these.
+
+    Attributes
+    ----------
+    source : str
+        The call that reports: ``"hausdorff"``, ``"compress"`` or ``"compress_scene"``.
+    message : str
+        One line for a person, numbers with their units; also ``str(event)``.
+    detail : object or None
+        The structured record when there is one: ``compress`` passes each pass's
+        :class:`meshbits.Iteration`.
+    """
+
+    source: str
+    message: str
+    detail: Any = None
+
+    def __str__(self) -> str:
+        return self.message
+
+    def to_dict(self) -> dict[str, Any]:
+        detail = self.detail.to_dict() if hasattr(self.detail, "to_dict") else self.detail
+        return json_ready({"source": self.source, "message": self.message, "detail": detail})
+
+
+#: What ``progress=`` takes everywhere.
+ProgressCallback = Callable[[Progress], None]

@@ -20,7 +20,6 @@ import copy
 import json
 import math
 import time
-from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -43,6 +42,7 @@ from .gltf import (
 from .hausdorff import Reference, default_samples
 from .io import write_atomic
 from .quantize import precision_bits
+from .results import Progress, ProgressCallback
 from .search import Attributes, Search, run_search
 
 __all__ = [
@@ -688,7 +688,7 @@ def compress_scene(
     normal_tolerance: float = NORMAL_TOLERANCE_DEGREES,
     output: str | Path | None = None,
     seed: int = 0,
-    progress: Callable[[str], None] | None = None,
+    progress: ProgressCallback | None = None,
 ) -> SceneResult:
     """Compress every triangle primitive of a scene to one world-space budget and write
     the scene with everything else kept.
@@ -715,7 +715,8 @@ def compress_scene(
     seed
         Seed of every measurement.
     progress
-        Called with a line per primitive.
+        Called with a :class:`meshbits.Progress` per primitive searched (``str(event)``
+        is its line).
 
     Returns
     -------
@@ -740,7 +741,11 @@ def compress_scene(
     else:
         document = load_document(source)
         input_bytes = _file_bytes(Path(source), document)
-    say = progress or (lambda _line: None)
+
+    def say(line: str) -> None:
+        if progress is not None:
+            progress(Progress("compress_scene", line))
+
     instances = document.mesh_instances()
     jobs: list[_Job] = []
     kept: list[PrimitiveData] = []

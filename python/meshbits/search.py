@@ -54,6 +54,7 @@ from .encode import Encoded, encode
 from .hausdorff import ClosestPoints, Reference
 from .mesh import as_mesh
 from .quantize import cube_grid
+from .results import Progress, ProgressCallback
 from .simplify import Simplifier, closest_level, simplify
 
 __all__ = [
@@ -246,6 +247,17 @@ class Iteration:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    def __str__(self) -> str:
+        upper = self.measured_error_upper
+        return (
+            f"pass: {self.source} mesh, B = {self.bits}, V = {self.vertices}; "
+            f"error {self.measured_error:.4g}"
+            + ("" if upper is None else f" (certified <= {upper:.4g})")
+            + f" (model {self.predicted_error:.4g}) (mesh units), "
+            f"{self.measured_size_bits // 8} bytes (model {self.predicted_size_bits / 8:.0f})"
+            + ("" if self.met else ": misses the budget")
+        )
 
 
 @dataclass
@@ -1149,9 +1161,7 @@ def _box(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return used.min(axis=0), used.max(axis=0)
 
 
-def run_search(
-    search: Search, max_passes: int, progress: Callable[[Iteration], None] | None = None
-) -> None:
+def run_search(search: Search, max_passes: int, progress: ProgressCallback | None = None) -> None:
     """Plan, build and measure until the search stops or ``max_passes`` are spent."""
     for _ in range(max_passes):
         began = time.perf_counter()
@@ -1160,4 +1170,4 @@ def run_search(
             break
         record = search.measure(candidate, began)
         if progress is not None:
-            progress(record)
+            progress(Progress("compress", str(record), record))
