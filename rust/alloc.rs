@@ -8,9 +8,14 @@
 //! `madvise` mode, so blocks of at least [`HUGE_BLOCK`] bytes are marked with
 //! `madvise(MADV_HUGEPAGE)` right after allocation, before their first touch: the kernel
 //! then backs them with 2 MiB pages (one fault per 2 MiB), which also spares the queries
-//! TLB misses. glibc serves such blocks with their own `mmap`, so the advice never spills
-//! onto other memory. Everything else is the system allocator unchanged; on other systems
-//! this is the system allocator.
+//! TLB misses. glibc serves such blocks with their own `mmap`, so there the advice covers
+//! that block alone; with another C library (musl, or a Python linked against jemalloc or
+//! mimalloc through `LD_PRELOAD`) a large block may share pages with other memory, which
+//! then gets huge pages too: harmless to correctness, at worst some memory. Everything else
+//! is the system allocator unchanged; on other systems this is the system allocator.
+//!
+//! It is installed only in the extension module (the crate's `python` feature, see
+//! `lib.rs`): a Rust program linking this library keeps its own global allocator.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 

@@ -215,8 +215,8 @@ impl TriangleTree {
                 faces.len()
             )));
         }
-        let (lo, hi) = crate::complexity::referenced_bbox(vertices, faces);
-        let centre = crate::complexity::bbox_centre(lo, hi);
+        let (lo, hi) = crate::reduce::referenced_bbox(vertices, faces);
+        let centre = crate::reduce::bbox_centre(lo, hi);
         let (lo, hi) = (DVec3::from_array(lo), DVec3::from_array(hi));
         let (centre, half_extent) = if faces.is_empty() {
             (DVec3::ZERO, 0.0)

@@ -34,9 +34,7 @@ use rayon::prelude::*;
 
 use crate::adjacency::{EdgeTable, weld_identical};
 use crate::error::{MeshError, check_extent, check_finite, check_indices};
-
-/// Edges per chunk of the fixed-order parallel sum (keeps results thread-count independent).
-const SUM_CHUNK: usize = 1 << 12;
+use crate::reduce::{deterministic_sum, referenced_bbox};
 
 /// Which per-edge estimate of `p(e) / r(e)` to sum.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -211,16 +209,6 @@ pub struct Complexity {
     pub per_edge: Option<EdgeArrays>,
 }
 
-/// Sums in fixed chunks so the result does not depend on the number of threads.
-#[must_use]
-pub fn deterministic_sum(values: &[f64]) -> f64 {
-    let partial: Vec<f64> = values
-        .par_chunks(SUM_CHUNK)
-        .map(|c| c.iter().sum::<f64>())
-        .collect();
-    partial.iter().sum()
-}
-
 #[inline]
 #[must_use]
 fn point(vertices: &[[f64; 3]], i: u32) -> DVec3 {
@@ -353,56 +341,12 @@ pub fn shape_complexity(
     })
 }
 
-/// Centre of the box `[lo, hi]`, also when `lo + hi` overflows (a box near ±1.8e308):
-/// `(lo + hi) / 2` otherwise, to the bit.
-#[must_use]
-pub fn bbox_centre(lo: [f64; 3], hi: [f64; 3]) -> DVec3 {
-    let (lo, hi) = (DVec3::from_array(lo), DVec3::from_array(hi));
-    let centre = (lo + hi) * 0.5;
-    if centre.is_finite() {
-        centre
-    } else {
-        lo * 0.5 + hi * 0.5
-    }
-}
-
-/// Axis-aligned bounding box of the vertices that some face references.
-#[must_use]
-pub fn referenced_bbox(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> ([f64; 3], [f64; 3]) {
-    let (lo, hi) = faces
-        .par_iter()
-        .fold(
-            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
-            |(lo, hi), f| {
-                f.iter().fold((lo, hi), |(lo, hi), &i| {
-                    let p = point(vertices, i);
-                    (lo.min(p), hi.max(p))
-                })
-            },
-        )
-        .reduce(
-            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
-            |(a, b), (c, d)| (a.min(c), b.max(d)),
-        );
-    (lo.to_array(), hi.to_array())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn tol() -> Tolerances {
         Tolerances::default()
-    }
-
-    #[test]
-    fn bbox_centre_of_a_box_near_the_float64_limit_is_finite() {
-        assert_eq!(bbox_centre([0.0; 3], [2.0; 3]), DVec3::splat(1.0));
-        assert_eq!(bbox_centre([-1e308; 3], [-1e308; 3]), DVec3::splat(-1e308));
-        assert_eq!(
-            bbox_centre([1e308; 3], [1.5e308; 3]),
-            DVec3::splat(1.25e308)
-        );
     }
 
     #[test]

@@ -49,8 +49,8 @@ use rayon::prelude::*;
 
 use crate::bvh::{SearchStack, TriangleTree, coherent_order};
 use crate::closest::covering_radius;
-use crate::complexity::deterministic_sum;
 use crate::error::{MAX_EXTENT, MeshError, check_finite, check_indices};
+use crate::reduce::deterministic_sum;
 use crate::sampling::{SurfaceSamples, local_corners, surface_samples};
 
 /// Samples per parallel work unit; a unit runs sequentially, in Morton order, each search

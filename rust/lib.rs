@@ -24,6 +24,7 @@ pub mod pool;
 #[cfg(feature = "python")]
 mod python;
 pub mod quantize;
+pub mod reduce;
 pub mod sampling;
 pub mod simplify;
 

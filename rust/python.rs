@@ -328,13 +328,8 @@ fn surface_samples<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
     let (points, sample_faces, nv) = run_detached(py, || {
-        crate::error::check_finite(v)?;
-        crate::error::check_indices(f, v.len())?;
-        let (lo, hi) = complexity::referenced_bbox(v, f);
-        let centre = complexity::bbox_centre(lo, hi);
-        let s = sampling::surface_samples(v, f, centre, samples, seed)?;
-        let points: Vec<[f64; 3]> = s.points.iter().map(|p| (*p + centre).to_array()).collect();
-        Ok((points, s.faces(), s.vertex_count()))
+        let s = sampling::surface_samples_centred(v, f, samples, seed)?;
+        Ok((s.absolute_points(), s.faces(), s.vertex_count()))
     })?;
     let out = PyDict::new(py);
     out.set_item("points", triples_to_array(py, points)?)?;
@@ -378,9 +373,7 @@ fn sample_mesh<'py>(
 ) -> PyResult<PySampledMesh> {
     let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
     let s = run_detached(py, || {
-        let (lo, hi) = complexity::referenced_bbox(v, f);
-        let centre = (glam::DVec3::from_array(lo) + glam::DVec3::from_array(hi)) * 0.5;
-        sampling::surface_samples(v, f, centre, samples, seed)
+        sampling::surface_samples_centred(v, f, samples, seed)
     })?;
     Ok(PySampledMesh {
         vertices: v.to_vec(),

@@ -22,6 +22,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::error::{MeshError, check_finite, check_indices};
+use crate::reduce::{bbox_centre, referenced_bbox};
 
 /// Faces per parallel work unit.
 const FACE_BLOCK: usize = 1 << 12;
@@ -164,6 +165,15 @@ impl SurfaceSamples {
         }
     }
 
+    /// The sample positions in the mesh's own coordinates, `point + centre` (length).
+    #[must_use]
+    pub fn absolute_points(&self) -> Vec<[f64; 3]> {
+        self.points
+            .par_iter()
+            .map(|p| (*p + self.centre).to_array())
+            .collect()
+    }
+
     /// Face of each sample; `u32::MAX` for vertex samples.
     #[must_use]
     pub fn faces(&self) -> Vec<u32> {
@@ -175,6 +185,21 @@ impl SurfaceSamples {
     }
 }
 
+/// Samples a mesh in its own frame, centred on the centre of its referenced vertices'
+/// bounding box ([`bbox_centre`], safe near the float64 limit): what a caller without a
+/// shared frame wants. [`SurfaceSamples::absolute_points`] gives the positions back in
+/// the mesh's coordinates.
+pub fn surface_samples_centred(
+    vertices: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    area_samples: usize,
+    seed: u64,
+) -> Result<SurfaceSamples, MeshError> {
+    check_mesh(vertices, faces)?;
+    let (lo, hi) = referenced_bbox(vertices, faces);
+    sample_checked(vertices, faces, bbox_centre(lo, hi), area_samples, seed)
+}
+
 /// Samples a mesh: its referenced vertices, then `area_samples` points by area, in the
 /// frame centred on `centre`. See the module docs.
 pub fn surface_samples(
@@ -184,11 +209,25 @@ pub fn surface_samples(
     area_samples: usize,
     seed: u64,
 ) -> Result<SurfaceSamples, MeshError> {
+    check_mesh(vertices, faces)?;
+    sample_checked(vertices, faces, centre, area_samples, seed)
+}
+
+fn check_mesh(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Result<(), MeshError> {
     if faces.is_empty() {
         return Err(MeshError::Empty("mesh has no faces to sample".into()));
     }
     check_finite(vertices)?;
-    check_indices(faces, vertices.len())?;
+    check_indices(faces, vertices.len())
+}
+
+fn sample_checked(
+    vertices: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    centre: DVec3,
+    area_samples: usize,
+    seed: u64,
+) -> Result<SurfaceSamples, MeshError> {
     let vertex_ids = referenced_vertices(faces, vertices.len());
     let offsets = area_offsets(&face_areas(vertices, faces, centre), area_samples, seed);
     let n_area = offsets[faces.len()];

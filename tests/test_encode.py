@@ -177,3 +177,34 @@ def test_fixed_width_size_is_the_encoded_size(fmt, bits, subdivisions):
     encoded = encode((sphere.vertices * 3.7 + 1.0, sphere.faces), bits, format=fmt)
     predicted = fixed_width_size_bits(fmt, bits, len(sphere.vertices), len(sphere.faces))
     assert abs(predicted - encoded.size_bits) <= 8 * 160  # the JSON header's numbers
+
+
+@pytest.mark.parametrize("fmt", ["glb", "ply"])
+def test_codes_are_the_quantizers_far_from_the_origin(fmt):
+    """CompressResult.codes were rint((decoded - origin) / step) from float32 positions:
+    1e4 away from the origin with S = 1, float32 positions are 1e-3 apart, many steps."""
+    sphere = trimesh.creation.icosphere(3)
+    vertices = sphere.vertices * 0.5 + [3000.0, -7000.0, 12000.0]
+    bits, origin, size = 16, None, 1.0
+    origin = vertices.min(axis=0)
+    encoded = encode((vertices, sphere.faces), bits, format=fmt, origin=origin, grid_size=size)
+    expected = meshbits.quantize(vertices, bits, box=(origin, origin + size)).codes
+    np.testing.assert_array_equal(encoded.codes, expected)
+    naive = np.rint((encoded.vertices - origin) / (size / (2**bits - 1)))
+    assert np.abs(naive - expected).max() > 1
+
+
+@pytest.mark.parametrize("bits", [8, 12, 16])
+def test_draco_codes_are_draco_grid_codes(bits):
+    """Draco decodes a few 1e-6 S off the nominal grid: the nearest codes stay Draco's
+    up to 16 bits, within a fraction of a step of each decoded position."""
+    sphere = trimesh.creation.icosphere(3)
+    vertices = sphere.vertices * 0.5 + 3.0
+    origin, size = vertices.min(axis=0), 1.0
+    encoded = encode_draco((vertices, sphere.faces), bits, origin=origin, grid_size=size)
+    step = size / (2**bits - 1)
+    off = np.abs(encoded.vertices - (origin + encoded.codes * step)) / step
+    assert off.max() < 0.25
+    expected = meshbits.quantize(vertices, bits, box=(origin, origin + size)).codes
+    same = {tuple(c) for c in encoded.codes.astype(int)} & {tuple(c) for c in expected.astype(int)}
+    assert len(same) >= 0.95 * len(expected)

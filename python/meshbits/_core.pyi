@@ -1,9 +1,106 @@
 """Typed stubs for the native module ``meshbits._core`` (see ``rust/python.rs``)."""
 
-from typing import Any, final
+from typing import TypedDict, final
 
 import numpy as np
 import numpy.typing as npt
+
+# What the kernels return, key by key (the dicts are plain ``dict`` at runtime; these names
+# exist only for type checkers). Lengths in the mesh's units.
+
+_Codes = npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.uint32]
+
+class _ComplexityBase(TypedDict):
+    k_raw: float
+    area: float
+    bbox_min: list[float]
+    bbox_max: list[float]
+    edges: int
+    interior_edges: int
+    boundary_edges: int
+    nonmanifold_edges: int
+    flat_edges: int
+    ill_conditioned_edges: int
+    degenerate_edges: int
+    merged_vertices: int
+    degenerate_faces: int
+
+class _ComplexityDict(_ComplexityBase, total=False):
+    """With ``per_edge``: one row per unique edge."""
+
+    edge_vertices: npt.NDArray[np.uint32]
+    edge_kind: npt.NDArray[np.uint8]
+    edge_radius: npt.NDArray[np.float64]
+    edge_weight: npt.NDArray[np.float64]
+    edge_contribution: npt.NDArray[np.float64]
+
+class _DirectedBase(TypedDict):
+    n_samples: int
+    n_vertex_samples: int
+    max: float
+    argmax: list[float]
+    argmax_closest: list[float]
+    argmax_face: int
+
+class _DirectedDict(_DirectedBase, total=False):
+    """``statistics``: mean .. p99; ``bounds``: upper .. converged; ``return_samples``:
+    samples .. vertex_distances."""
+
+    mean: float
+    rms: float
+    p50: float
+    p95: float
+    p99: float
+    upper: float
+    refined_points: int
+    refined_cells: int
+    converged: bool | None
+    samples: npt.NDArray[np.float64]
+    sample_faces: npt.NDArray[np.uint32]
+    distances: npt.NDArray[np.float64]
+    vertex_distances: npt.NDArray[np.float64]
+
+class _SamplesDict(TypedDict):
+    points: npt.NDArray[np.float64]
+    faces: npt.NDArray[np.uint32]
+    n_vertex_samples: int
+
+class _GridDict(TypedDict):
+    origin: list[float]
+    step: list[float]
+    box_min: list[float]
+    box_max: list[float]
+    grid_size: float
+    bound: float
+    bits: int
+
+class _QuantizedDict(_GridDict):
+    codes: _Codes
+    positions: npt.NDArray[np.float64]
+    max_displacement: float
+
+class _ClusteredDict(_GridDict):
+    vertices: npt.NDArray[np.float64]
+    faces: npt.NDArray[np.uint32]
+    codes: _Codes
+    vertex_map: npt.NDArray[np.int64]
+    face_index: npt.NDArray[np.uint32]
+    merged_vertices: int
+    unreferenced_vertices: int
+    degenerate_faces: int
+    duplicate_faces: int
+    max_displacement: float
+
+class _SimplifiedBase(TypedDict):
+    vertex_ids: npt.NDArray[np.uint32]
+    faces: npt.NDArray[np.uint32]
+    error: float
+
+class _SimplifiedDict(_SimplifiedBase, total=False):
+    """``update_positions``: the moved positions and attributes."""
+
+    positions: npt.NDArray[np.float64]
+    attributes: npt.NDArray[np.float32]
 
 __all__ = [
     "BUILD_PROFILE",
@@ -45,7 +142,7 @@ def shape_complexity(
     flat_angle: float,
     ill_angle: float,
     ill_cocircular: float,
-) -> dict[str, Any]: ...
+) -> _ComplexityDict: ...
 
 @final
 class TriangleTree:
@@ -79,10 +176,10 @@ def hausdorff_directed(
     tolerance: float | None,
     refine_budget: int,
     return_samples: bool,
-) -> dict[str, Any]: ...
+) -> _DirectedDict: ...
 def surface_samples(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32], samples: int, seed: int
-) -> dict[str, Any]: ...
+) -> _SamplesDict: ...
 def quantize(
     vertices: npt.NDArray[np.float64],
     bits: int,
@@ -90,7 +187,7 @@ def quantize(
     box_min: tuple[float, float, float] | None,
     box_max: tuple[float, float, float] | None,
     centered: bool,
-) -> dict[str, Any]: ...
+) -> _QuantizedDict: ...
 def dequantize(
     codes: npt.NDArray[np.int64],
     origin: tuple[float, float, float],
@@ -119,7 +216,7 @@ def cluster(
     box_max: tuple[float, float, float] | None,
     centered: bool,
     duplicates: str,
-) -> dict[str, Any]: ...
+) -> _ClusteredDict: ...
 
 @final
 class SampledMesh:
@@ -139,7 +236,7 @@ def hausdorff_from_samples(
     tolerance: float | None,
     refine_budget: int,
     return_samples: bool,
-) -> dict[str, Any]: ...
+) -> _DirectedDict: ...
 def simplify(
     vertices: npt.NDArray[np.float64],
     faces: npt.NDArray[np.uint32],
@@ -152,6 +249,6 @@ def simplify(
     prune: bool,
     weld: bool,
     update_positions: bool,
-) -> dict[str, Any]: ...
+) -> _SimplifiedDict: ...
 def set_num_threads(threads: int) -> None: ...
 def get_num_threads() -> int: ...

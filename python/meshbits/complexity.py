@@ -151,15 +151,17 @@ def shape_complexity(
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"{name} must be True or False, got {flag!r}")
     vertices, triangles = as_mesh(mesh_or_vertices, faces)
-    raw = _core.shape_complexity(
-        vertices,
-        triangles,
-        estimator,
-        bool(merge_vertices),
-        bool(per_edge),
-        FLAT_ANGLE,
-        ILL_ANGLE,
-        ILL_COCIRCULAR,
+    raw: dict[str, Any] = dict(
+        _core.shape_complexity(
+            vertices,
+            triangles,
+            estimator,
+            bool(merge_vertices),
+            bool(per_edge),
+            FLAT_ANGLE,
+            ILL_ANGLE,
+            ILL_COCIRCULAR,
+        )
     )
     grid_size = float(np.max(np.subtract(raw.pop("bbox_max"), raw.pop("bbox_min"))))
     k_raw = raw.pop("k_raw")

@@ -69,7 +69,8 @@ class CompressResult(ArrayResult):
         ``(m, 3)`` int64 faces.
     codes : ndarray
         ``(n, 3)`` integer grid codes of the output vertices (origin :attr:`origin`,
-        step :attr:`step`).
+        step :attr:`step`) as the file stores them, not recomputed from float positions
+        (see :func:`meshbits.encode.draco_codes` for Draco's).
     origin : ndarray
         Grid origin, ``(3,)`` (length): the min corner of the original's bounding box
         (widened if the simplified mesh pokes out of it).
@@ -338,9 +339,7 @@ def compress(
     encoded = search.encoded(chosen)
     level = search.levels[chosen.level]
     step = level.grid_size / (2**encoded.bits - 1)
-    codes = np.rint((encoded.vertices - level.origin) / step).astype(
-        np.uint16 if encoded.bits <= 16 else np.uint32
-    )
+    codes = encoded.codes.astype(np.uint16 if encoded.bits <= 16 else np.uint32)
     return CompressResult(
         constraint=constraint,
         budget=budget,

@@ -322,7 +322,9 @@ def quantize(
     if hasattr(points, "vertices"):
         points = points.vertices
     array = as_points(points, "points", allow_empty=box_min is not None)
-    raw = _core.quantize(array, bits, grid, box_min, box_max, convention == "centered")
+    raw: dict[str, Any] = dict(
+        _core.quantize(array, bits, grid, box_min, box_max, convention == "centered")
+    )
     return Quantized(
         codes=raw.pop("codes"),
         positions=raw.pop("positions"),
@@ -441,15 +443,17 @@ def cluster(
     # passes; a refused mesh is checked again here for a message naming the row.
     vertices, triangles = as_mesh(mesh_or_vertices, faces, keep_int64=True, check_finite=False)
     try:
-        raw = _core.cluster(
-            vertices,
-            triangles,
-            bits,
-            grid,
-            box_min,
-            box_max,
-            convention == "centered",
-            duplicates,
+        raw: dict[str, Any] = dict(
+            _core.cluster(
+                vertices,
+                triangles,
+                bits,
+                grid,
+                box_min,
+                box_max,
+                convention == "centered",
+                duplicates,
+            )
         )
     except _core.MeshbitsError:
         as_points(vertices, "vertices")

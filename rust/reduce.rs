@@ -1,0 +1,97 @@
+//! Reductions whose result does not depend on the number of threads: sums in fixed chunks
+//! and the bounding box of the referenced vertices. K, the area and the Hausdorff
+//! statistics are sums of millions of terms; a sum split by rayon's work stealing would
+//! round differently from run to run, so sums go through [`deterministic_sum`].
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// Edges per chunk of the fixed-order parallel sum (keeps results thread-count independent).
+const SUM_CHUNK: usize = 1 << 12;
+
+/// Sums in fixed chunks so the result does not depend on the number of threads.
+#[must_use]
+pub fn deterministic_sum(values: &[f64]) -> f64 {
+    let partial: Vec<f64> = values
+        .par_chunks(SUM_CHUNK)
+        .map(|c| c.iter().sum::<f64>())
+        .collect();
+    partial.iter().sum()
+}
+
+/// Centre of the box `[lo, hi]`, also when `lo + hi` overflows (a box near ±1.8e308):
+/// `(lo + hi) / 2` otherwise, to the bit.
+#[must_use]
+pub fn bbox_centre(lo: [f64; 3], hi: [f64; 3]) -> DVec3 {
+    let (lo, hi) = (DVec3::from_array(lo), DVec3::from_array(hi));
+    let centre = (lo + hi) * 0.5;
+    if centre.is_finite() {
+        centre
+    } else {
+        lo * 0.5 + hi * 0.5
+    }
+}
+
+/// Axis-aligned bounding box of the vertices that some face references.
+#[must_use]
+pub fn referenced_bbox(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> ([f64; 3], [f64; 3]) {
+    let (lo, hi) = faces
+        .par_iter()
+        .fold(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
+            |(lo, hi), f| {
+                f.iter().fold((lo, hi), |(lo, hi), &i| {
+                    let p = DVec3::from_array(vertices[i as usize]);
+                    (lo.min(p), hi.max(p))
+                })
+            },
+        )
+        .reduce(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY),
+            |(a, b), (c, d)| (a.min(c), b.max(d)),
+        );
+    (lo.to_array(), hi.to_array())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bbox_centre_of_a_box_near_the_float64_limit_is_finite() {
+        assert_eq!(bbox_centre([0.0; 3], [2.0; 3]), DVec3::splat(1.0));
+        assert_eq!(bbox_centre([-1e308; 3], [-1e308; 3]), DVec3::splat(-1e308));
+        assert_eq!(
+            bbox_centre([1e308; 3], [1.5e308; 3]),
+            DVec3::splat(1.25e308)
+        );
+    }
+
+    #[test]
+    fn the_sum_does_not_depend_on_the_thread_count() {
+        let values: Vec<f64> = (0..100_000).map(|i| 1.0 / (1.0 + f64::from(i))).collect();
+        let sums: Vec<u64> = [1, 2, 3]
+            .iter()
+            .map(|&threads| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .expect("a test pool");
+                pool.install(|| deterministic_sum(&values)).to_bits()
+            })
+            .collect();
+        assert!(sums.windows(2).all(|w| w[0] == w[1]));
+    }
+
+    #[test]
+    fn the_box_holds_only_referenced_vertices() {
+        let vertices = [
+            [0.0, 0.0, 0.0],
+            [1.0, 2.0, 3.0],
+            [-1.0, 0.5, 0.0],
+            [9.0, 9.0, 9.0],
+        ];
+        let (lo, hi) = referenced_bbox(&vertices, &[[0, 1, 2]]);
+        assert_eq!((lo, hi), ([-1.0, 0.0, 0.0], [1.0, 2.0, 3.0]));
+    }
+}
