@@ -1358,18 +1358,20 @@ def api_strategies(meshes: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str
     def simplify(draw: Any) -> ApiInput:
         (mesh,), how = mesh_arg(draw, pair_only=True)
         target = number(draw, [4, 10, 20, 100, 3, 10**12])
-        kwargs = {
-            "aggressiveness": number(draw, [1.5, 3.0, 7.0]),
-            "preserve_border": draw(st.booleans()),
+        kwargs: dict[str, Any] = {
+            "method": draw(st.sampled_from(["meshopt", "meshopt", "fast-simplification", "x"])),
+            "lock_border": draw(st.booleans()),
             "rtol": number(draw, [0.05, 0.5]),
         }
+        if draw(st.booleans()):
+            kwargs["error"] = number(draw, [0.01, 0.0, 1e-9, 1e9])
         return ApiInput(
             "api-simplify",
             "simplify",
             (mesh, target),
             kwargs,
             how,
-            ("mesh", "vertices", "faces", "target_vertices", "aggressiveness", "rtol"),
+            ("mesh", "vertices", "faces", "error", "method", "rtol", "target"),
         )
 
     def plan(draw: Any, func: str) -> ApiInput:
@@ -1383,7 +1385,8 @@ def api_strategies(meshes: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str
             ("alpha", [1.0, 0.5]),
             ("connectivity_bits", [4.0, 0.0, 12.0]),
         ):
-            if draw(st.booleans()):
+            # grid_size is required: left out one time in eight, to check that refusal
+            if draw(st.integers(0, 7)) > 0 if key == "grid_size" else draw(st.booleans()):
                 kwargs[key] = number(draw, typical)
         if draw(st.booleans()):
             kwargs["method"] = draw(st.sampled_from(["exact", "asymptotic", "bogus", None]))
@@ -1392,7 +1395,8 @@ def api_strategies(meshes: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str
                 st.sampled_from(["derived", "paper", "x", 1.5, float("nan"), -10.0, 1e300, None])
             )
         first = "size_bits" if func == "plan_for_size" else "error"
-        return ApiInput(f"api-{func}", func, (budget, k), kwargs, "", (first, "k", *kwargs))
+        names = (first, "k", "grid_size", *kwargs)
+        return ApiInput(f"api-{func}", func, (budget, k), kwargs, "", names)
 
     def helpers(draw: Any) -> ApiInput:
         func = draw(
@@ -1400,9 +1404,8 @@ def api_strategies(meshes: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str
         )
         if func == "plan_for_vertices":
             item = plan(draw, "plan_for_size")
-            return ApiInput(
-                "api-helpers", func, item.args, item.kwargs, "", ("vertices", "k", *item.kwargs)
-            )
+            names = ("vertices", "k", "grid_size", *item.kwargs)
+            return ApiInput("api-helpers", func, item.args, item.kwargs, "", names)
         if func == "dequantize":
             codes = draw(st.sampled_from(["int", "uint64-big", "float", "n2", "empty"]))
             value = {
