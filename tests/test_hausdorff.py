@@ -566,3 +566,30 @@ def test_ragged_point_lists_are_refused_naming_the_argument():
         meshbits.ClosestPoints(TRIANGLE).query([[0.0, 0.0, 0.0], [1.0, 2.0]])
     with pytest.raises(meshbits.MeshbitsError, match="faces must be"):
         meshbits.surface_samples(np.eye(3), [[0, 1, 2], [0, 1]])
+
+
+def _overlapping_fans(n_faces: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Polygons of corners from all over a mesh, fan-triangulated: what the fuzz campaign
+    built from bunny_res4 (rows of 8 to 255 random vertices)."""
+    rng = np.random.default_rng(seed)
+    vertices = rng.uniform(0.0, 1.0, (453, 3))
+    return vertices, rng.integers(0, 453, (n_faces, 3))
+
+
+def test_overlapping_triangles_are_refused_not_measured_for_minutes():
+    """10,000 closest-point queries against 240k such faces took 140 s; compress on 5,688
+    took 62 s. A BVH cannot cull boxes that each span the mesh."""
+    from meshbits.mesh import MAX_BOX_OVERLAP, box_overlap
+
+    bunny = load("bunny.ply")
+    assert box_overlap(*bunny) < 0.1
+    tangle = _overlapping_fans(5688)
+    assert box_overlap(*tangle) > MAX_BOX_OVERLAP
+    with pytest.raises(meshbits.MeshbitsError, match="overlap"):
+        meshbits.hausdorff(tangle, bunny, samples=1000)
+    with pytest.raises(meshbits.MeshbitsError, match="overlap"):
+        meshbits.ClosestPoints(tangle)
+    with pytest.raises(meshbits.MeshbitsError, match="overlap"):
+        meshbits.Reference(bunny).hausdorff(tangle)
+    with pytest.raises(meshbits.MeshbitsError, match="overlap"):
+        meshbits.compress(tangle, error=0.01, relative=True)

@@ -25,7 +25,7 @@ from .constants import (
     HAUSDORFF_SAMPLES_PER_FACE,
 )
 from .errors import MeshbitsError
-from .mesh import MeshLike, as_mesh, as_points
+from .mesh import MeshLike, as_mesh, as_points, check_overlap
 from .results import ArrayResult, Progress, ProgressCallback
 
 __all__ = [
@@ -142,6 +142,7 @@ class ClosestPoints:
 
     def __init__(self, mesh_or_vertices: MeshLike, faces: Any = None) -> None:
         vertices, triangles = as_mesh(mesh_or_vertices, faces)
+        check_overlap(vertices, triangles)
         self._tree = _core.build_tree(vertices, triangles)
 
     @property
@@ -470,6 +471,8 @@ def hausdorff(
             progress(Progress("hausdorff", line))
 
     meshes = {"A": as_mesh(a), "B": as_mesh(b)}
+    for name, (vertices, faces) in meshes.items():
+        check_overlap(vertices, faces, f"mesh {name.lower()}")
     start = time.perf_counter()
     sizes = {name: f"{len(faces):,}" for name, (_, faces) in meshes.items()}
     say(f"building the BVHs of A ({sizes['A']} faces) and B ({sizes['B']} faces)")
@@ -551,6 +554,7 @@ class Reference:
 
     def __init__(self, mesh: MeshLike, *, samples: int | None = None, seed: int = 0) -> None:
         self.vertices, self.faces = as_mesh(mesh)
+        check_overlap(self.vertices, self.faces)
         self.seed = _check_seed(seed)
         self.samples = (
             default_samples(len(self.faces))
@@ -584,6 +588,7 @@ class Reference:
         tolerance = _check_tolerance(tolerance)
         bounds = bounds or tolerance is not None
         vertices, faces = as_mesh(candidate)
+        check_overlap(vertices, faces, "the candidate")
         tree = _core.build_tree(vertices, faces)
         a_to_b = _core.hausdorff_from_samples(
             self._sampled, tree, statistics, bounds, tolerance, refine_budget, False
@@ -617,6 +622,7 @@ class Reference:
                 _core.sample_mesh(self.vertices, self.faces, samples, self.seed),
             )
         vertices, faces = as_mesh(candidate)
+        check_overlap(vertices, faces, "the candidate")
         tree = _core.build_tree(vertices, faces)
         budget = HAUSDORFF_REFINE_BUDGET
         a_to_b = _core.hausdorff_from_samples(

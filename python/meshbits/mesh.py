@@ -16,7 +16,7 @@ import numpy.typing as npt
 from . import _core
 from .errors import MeshbitsError
 
-__all__ = ["MeshLike", "as_mesh", "as_points"]
+__all__ = ["MAX_BOX_OVERLAP", "MeshLike", "as_mesh", "as_points", "box_overlap", "check_overlap"]
 
 
 class VerticesAndFaces(Protocol):
@@ -179,3 +179,45 @@ def as_mesh(
         vertices = mesh
     vertices = as_points(vertices, "vertices", check_finite=check_finite)
     return vertices, _as_faces(faces, len(vertices), keep_int64)
+
+
+#: Most triangle bounding boxes a point of the mesh's box may lie in, on average, before
+#: closest-point queries are refused (see :func:`box_overlap`). Surfaces score 0.03 to
+#: 0.4 (bunny 0.037, dragon 0.055, Suzanne 0.37); fan-triangulated polygons of vertices
+#: from all over a mesh scored 319 (5,688 faces: compress took 62 s) and 18,100 (240k
+#: faces: 10,000 queries took 140 s).
+MAX_BOX_OVERLAP = 64.0
+
+_OVERLAP_CHUNK = 1 << 20
+
+
+def box_overlap(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """How many triangle bounding boxes a point of the mesh's bounding box lies in, on
+    average: the sum of the triangles' box volumes over the mesh's box volume, every box
+    widened by 1e-3 of the mesh's largest side so flat boxes count. A BVH query visits
+    about this many triangles beyond the few near it (dimensionless)."""
+    used = np.unique(faces)
+    low, high = vertices[used].min(axis=0), vertices[used].max(axis=0)
+    pad = 1e-3 * float(np.max(high - low))
+    if pad == 0:
+        return 0.0
+    total = 0.0
+    for start in range(0, len(faces), _OVERLAP_CHUNK):
+        corners = vertices[faces[start : start + _OVERLAP_CHUNK]]
+        extent = corners.max(axis=1) - corners.min(axis=1) + pad
+        total += float(np.prod(extent, axis=1).sum())
+    return total / float(np.prod(high - low + pad))
+
+
+def check_overlap(vertices: np.ndarray, faces: np.ndarray, name: str = "the mesh") -> None:
+    """Refuse a mesh whose triangles overlap beyond :data:`MAX_BOX_OVERLAP`: measuring
+    distances to it would take minutes to hours, not seconds."""
+    overlap = box_overlap(vertices, faces)
+    if overlap > MAX_BOX_OVERLAP:
+        raise MeshbitsError(
+            f"{name}'s {len(faces):,} triangles overlap: a point of its bounding box lies in "
+            f"{overlap:,.0f} triangles' boxes on average (a surface: below 1; at most "
+            f"{MAX_BOX_OVERLAP:g} are measured), so each distance query would visit "
+            "thousands of triangles. Remove the overlapping faces first (polygons of many "
+            "corners fan-triangulated?)"
+        )
