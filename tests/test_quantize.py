@@ -721,3 +721,25 @@ def test_precision_bits_of_coordinates_beyond_float32_warns_nothing():
         meshbits.precision_bits(vertices, grid_size=math.inf)  # was OverflowError
     with pytest.raises(TypeError, match="grid_size"):
         meshbits.precision_bits(vertices, grid_size="1")
+
+
+def test_precision_bits_at_the_top_of_the_float64_range_warns_nothing():
+    """np.spacing overflowed (a RuntimeWarning) on a coordinate of 5e271 (fuzz campaign)."""
+    import warnings
+
+    vertices = np.zeros((4, 3))
+    for top in (5.05396624e271, np.finfo(np.float64).max):
+        vertices[2, 1] = top
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert meshbits.precision_bits(vertices) >= 1
+    for x in (1.0, 3.0, 1000.5, 0.1):  # the spacing from the exponent is numpy's
+        spacing = float(np.spacing(np.float32(x) if float(np.float32(x)) == x else x))
+        row = np.array([[x, 0.0, 0.0]])
+        assert meshbits.precision_bits(row, 1.0) == math.ceil(math.log2(1.0 / spacing + 1.0))
+
+
+def test_cluster_with_ragged_faces_names_faces():
+    """np.ndim on ragged faces raised numpy's own ValueError (fuzz campaign)."""
+    with pytest.raises(meshbits.MeshbitsError, match="faces"):
+        meshbits.cluster(np.zeros((3, 3)), [[0, 1], [2]], bits=8)

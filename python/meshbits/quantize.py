@@ -137,7 +137,10 @@ def precision_bits(vertices: Any, grid_size: float | None = None) -> int:
         return MIN_BITS
     with np.errstate(over="ignore"):  # beyond float32's range: not exact, rightly
         exact32 = np.array_equal(array.astype(np.float32).astype(np.float64), array)
-    spacing = float(np.spacing(np.float32(largest) if exact32 else largest))
+    # The spacing of floats at the largest coordinate, from its exponent (np.spacing
+    # overflows at the top of the range): 2^(e - 23) in float32, 2^(e - 52) in float64.
+    exponent = math.frexp(largest)[1] - 1
+    spacing = math.ldexp(1.0, max(exponent - (23 if exact32 else 52), -1074))
     ratio = grid_size / spacing
     if not math.isfinite(ratio):  # S / spacing beyond float64: in logarithms
         return math.ceil(math.log2(grid_size) - math.log2(spacing))
@@ -430,7 +433,7 @@ def cluster(
     TypeError
         Non-numeric vertices, non-integer faces or ``bits``, ``bits`` missing.
     """
-    if faces is not None and np.ndim(faces) == 0:
+    if faces is not None and isinstance(faces, (numbers.Number, np.generic)):
         raise TypeError(
             f"cluster() got {faces!r} for faces; bits is keyword-only: cluster(mesh, bits=8)"
         )
