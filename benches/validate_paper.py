@@ -44,7 +44,7 @@ DOCS = ROOT / "docs"
 
 C = 4.0 * math.pi / math.sqrt(3.0)  # paper Eq. 10
 ALPHA, T = 1.0, 4.0  # the paper's size model: no coordinate coding, 4 bits/vertex
-PAPER_BUNNY = [  # MODEL.md, "What the paper measured": V, B with no jaggies
+PAPER_BUNNY = [  # docs/model.md, "What the paper measured": V, B with no jaggies
     (15157, 10),
     (7384, 8),
     (3286, 8),
@@ -224,7 +224,7 @@ def load(name: str) -> tuple[tuple[np.ndarray, np.ndarray], str] | None:
 
 
 def grid_quantize(vertices: np.ndarray, bits: int, lo: np.ndarray, size: float) -> np.ndarray:
-    """MODEL.md "Quantization": ``q = round((x - min) (2^B - 1) / S)``, dequantised."""
+    """The grid of docs/quantize.md: ``q = round((x - min) (2^B - 1) / S)``, dequantised."""
     step = size / (2**bits - 1)
     return lo + np.rint((vertices - lo) / step) * step
 
@@ -532,8 +532,8 @@ def run(quick: bool, out: Path) -> str:
         say("Skipped (not found): " + ", ".join(missing) + ".\n")
     say(
         "Each mesh is simplified with `meshbits.simplify` (fast-simplification) to a "
-        "ladder of V, each level quantized on the original's grid (MODEL.md "
-        f'"Quantization") at B = {grid_bits[0]}..{grid_bits[-1]}, and measured against '
+        "ladder of V, each level quantized on the original's grid ([quantize.md]"
+        f"(quantize.md)) at B = {grid_bits[0]}..{grid_bits[-1]}, and measured against "
         "the original. The figure shows measured Emax (solid) and Emean (dotted) against "
         "B for each level, with the model E(B, V) (dashed) using K (circumsphere) of the "
         "full mesh.\n"

@@ -42,13 +42,10 @@ use obvhs::bvh2::builder::build_bvh2;
 use rayon::prelude::*;
 
 use crate::closest::PreparedTriangle;
-use crate::error::{MeshError, check_finite, check_indices};
+use crate::error::{MAX_EXTENT, MeshError, check_finite, check_indices};
 
 /// Relative widening of every triangle box before the f32 conversion (`2⁻⁴⁰`).
 const BOX_PAD: f64 = 1.0 / (1u64 << 40) as f64;
-
-/// Recentred coordinates above this magnitude (length) do not fit f32 boxes.
-const MAX_EXTENT: f64 = 1e36;
 
 /// Queries per parallel work unit in [`TriangleTree::query`]; the hint carries over
 /// inside a unit.
@@ -219,11 +216,12 @@ impl TriangleTree {
             )));
         }
         let (lo, hi) = crate::complexity::referenced_bbox(vertices, faces);
+        let centre = crate::complexity::bbox_centre(lo, hi);
         let (lo, hi) = (DVec3::from_array(lo), DVec3::from_array(hi));
         let (centre, half_extent) = if faces.is_empty() {
             (DVec3::ZERO, 0.0)
         } else {
-            ((lo + hi) * 0.5, ((hi - lo) * 0.5).max_element())
+            (centre, ((hi - lo) * 0.5).max_element())
         };
         if half_extent.is_nan() || half_extent > MAX_EXTENT {
             return Err(MeshError::Parameter(format!(
@@ -455,6 +453,17 @@ impl TriangleTree {
         }
     }
 
+    /// The first of `local` (points in the tree's frame) farther than [`MAX_EXTENT`] from
+    /// its centre on some axis, with that distance: such points' squared distances approach
+    /// the float64 range, and the f32 boxes cannot hold them.
+    #[must_use]
+    pub fn beyond_reach(&self, local: &[DVec3]) -> Option<(usize, f64)> {
+        local
+            .par_iter()
+            .position_first(|p| p.abs().max_element() > MAX_EXTENT)
+            .map(|i| (i, local[i].abs().max_element()))
+    }
+
     /// Exact nearest triangle to each point (caller's frame), in parallel.
     ///
     /// Returns, per point, the distance (length), the closest point (caller's frame,
@@ -475,6 +484,12 @@ impl TriangleTree {
             .par_iter()
             .map(|p| DVec3::from_array(*p) - self.centre)
             .collect();
+        if let Some((i, far)) = self.beyond_reach(&local) {
+            return Err(MeshError::Parameter(format!(
+                "point {i} lies {far:.3e} (length) from the mesh's centre: more than the \
+                 supported {MAX_EXTENT:.0e}"
+            )));
+        }
         let order = coherent_order(&local);
         let hits: Vec<Nearest> = order
             .par_chunks(QUERY_CHUNK)

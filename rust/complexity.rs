@@ -33,7 +33,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::adjacency::{EdgeTable, weld_identical};
-use crate::error::{MeshError, check_finite, check_indices};
+use crate::error::{MeshError, check_extent, check_finite, check_indices};
 
 /// Edges per chunk of the fixed-order parallel sum (keeps results thread-count independent).
 const SUM_CHUNK: usize = 1 << 12;
@@ -262,6 +262,8 @@ pub fn shape_complexity(
         (faces.into(), 0)
     };
     let faces: &[[u32; 3]] = &faces;
+    let (bbox_min, bbox_max) = referenced_bbox(vertices, faces);
+    check_extent(bbox_min, bbox_max)?;
 
     let face_areas: Vec<f64> = faces
         .par_iter()
@@ -280,7 +282,6 @@ pub fn shape_complexity(
             faces.len()
         )));
     }
-    let (bbox_min, bbox_max) = referenced_bbox(vertices, faces);
 
     let table = EdgeTable::build(faces, vertices.len())?;
     let interior_geometry = |e: usize| -> Option<EdgeGeometry> {
@@ -352,6 +353,19 @@ pub fn shape_complexity(
     })
 }
 
+/// Centre of the box `[lo, hi]`, also when `lo + hi` overflows (a box near ±1.8e308):
+/// `(lo + hi) / 2` otherwise, to the bit.
+#[must_use]
+pub fn bbox_centre(lo: [f64; 3], hi: [f64; 3]) -> DVec3 {
+    let (lo, hi) = (DVec3::from_array(lo), DVec3::from_array(hi));
+    let centre = (lo + hi) * 0.5;
+    if centre.is_finite() {
+        centre
+    } else {
+        lo * 0.5 + hi * 0.5
+    }
+}
+
 /// Axis-aligned bounding box of the vertices that some face references.
 #[must_use]
 pub fn referenced_bbox(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> ([f64; 3], [f64; 3]) {
@@ -379,6 +393,29 @@ mod tests {
 
     fn tol() -> Tolerances {
         Tolerances::default()
+    }
+
+    #[test]
+    fn bbox_centre_of_a_box_near_the_float64_limit_is_finite() {
+        assert_eq!(bbox_centre([0.0; 3], [2.0; 3]), DVec3::splat(1.0));
+        assert_eq!(bbox_centre([-1e308; 3], [-1e308; 3]), DVec3::splat(-1e308));
+        assert_eq!(
+            bbox_centre([1e308; 3], [1.5e308; 3]),
+            DVec3::splat(1.25e308)
+        );
+    }
+
+    #[test]
+    fn meshes_wider_than_the_supported_extent_are_refused() {
+        let v = [
+            [0.0, 0.0, 0.0],
+            [1e308, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let f = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        let err = shape_complexity(&v, &f, Estimator::Circumsphere, true, false, &tol());
+        assert!(matches!(err, Err(MeshError::Parameter(_))), "{err:?}");
     }
 
     #[test]

@@ -56,6 +56,22 @@ impl fmt::Display for MeshError {
 
 impl std::error::Error for MeshError {}
 
+/// Largest extent (length) of a mesh, and distance of a query from a tree's centre, that
+/// the kernels accept: recentred coordinates beyond it do not fit the BVH's f32 boxes,
+/// and their squares approach the float64 range.
+pub const MAX_EXTENT: f64 = 1e36;
+
+/// Refuses a box `[lo, hi]` wider than [`MAX_EXTENT`] on some axis.
+pub fn check_extent(lo: [f64; 3], hi: [f64; 3]) -> Result<(), MeshError> {
+    let span = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+    if span > MAX_EXTENT {
+        return Err(MeshError::Parameter(format!(
+            "the mesh spans {span:.3e} (length): more than the supported {MAX_EXTENT:.0e}"
+        )));
+    }
+    Ok(())
+}
+
 /// Checks that every coordinate is finite; names the first offending vertex.
 pub fn check_finite(vertices: &[[f64; 3]]) -> Result<(), MeshError> {
     match vertices

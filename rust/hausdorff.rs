@@ -50,7 +50,7 @@ use rayon::prelude::*;
 use crate::bvh::{SearchStack, TriangleTree, coherent_order};
 use crate::closest::covering_radius;
 use crate::complexity::deterministic_sum;
-use crate::error::{MeshError, check_finite, check_indices};
+use crate::error::{MAX_EXTENT, MeshError, check_finite, check_indices};
 use crate::sampling::{SurfaceSamples, local_corners, surface_samples};
 
 /// Samples per parallel work unit; a unit runs sequentially, in Morton order, each search
@@ -419,6 +419,12 @@ pub fn directed_from_samples(
         &recentred
     };
     let points = &samples.points;
+    if let Some((_, far)) = tree.beyond_reach(&points[..samples.vertex_count()]) {
+        return Err(MeshError::Parameter(format!(
+            "a vertex of one mesh lies {far:.3e} (length) from the centre of the other: more \
+             than the supported {MAX_EXTENT:.0e}"
+        )));
+    }
     let nv = samples.vertex_count();
     let bounds_wanted = opts.bounds || opts.tolerance.is_some();
     let full = opts.statistics || opts.return_samples;

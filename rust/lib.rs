@@ -5,8 +5,10 @@
 //! table ([`adjacency`]); the sampled Hausdorff distance ([`hausdorff`]) over seeded surface
 //! samples ([`sampling`]), a triangle BVH ([`bvh`]) and exact point-triangle distances
 //! ([`closest`]). Kernels take plain slices (`&[[f64; 3]]` vertices,
-//! `&[[u32; 3]]` faces), return `Result<_, MeshError>` and never panic on user data; the
-//! only file that knows Python is [`python`].
+//! `&[[u32; 3]]` faces), return `Result<_, MeshError>` and never panic on user data. The
+//! only file that knows Python is `python.rs`, built with the `python` feature (the
+//! extension module `meshbits._core`, which maturin builds); without it the crate builds
+//! and tests from Rust alone.
 //!
 //! Grid quantization to B bits and vertex clustering: [`quantize`].
 
@@ -19,6 +21,7 @@ pub mod complexity;
 pub mod error;
 pub mod hausdorff;
 pub mod pool;
+#[cfg(feature = "python")]
 mod python;
 pub mod quantize;
 pub mod sampling;
@@ -26,5 +29,7 @@ pub mod simplify;
 
 pub use error::MeshError;
 
+/// The extension's allocator (see [`alloc`]); a crate linking this library keeps its own.
+#[cfg(feature = "python")]
 #[global_allocator]
 static GLOBAL: alloc::HugePageAlloc = alloc::HugePageAlloc;

@@ -331,7 +331,7 @@ fn surface_samples<'py>(
         crate::error::check_finite(v)?;
         crate::error::check_indices(f, v.len())?;
         let (lo, hi) = complexity::referenced_bbox(v, f);
-        let centre = (glam::DVec3::from_array(lo) + glam::DVec3::from_array(hi)) * 0.5;
+        let centre = complexity::bbox_centre(lo, hi);
         let s = sampling::surface_samples(v, f, centre, samples, seed)?;
         let points: Vec<[f64; 3]> = s.points.iter().map(|p| (*p + centre).to_array()).collect();
         Ok((points, s.faces(), s.vertex_count()))

@@ -192,7 +192,17 @@ pub fn surface_samples(
     let vertex_ids = referenced_vertices(faces, vertices.len());
     let offsets = area_offsets(&face_areas(vertices, faces, centre), area_samples, seed);
     let n_area = offsets[faces.len()];
-    let mut points = Vec::with_capacity(vertex_ids.len() + n_area);
+    let mut points = Vec::new();
+    let total = vertex_ids.len() + n_area;
+    // A sample count is the caller's choice: one too large for memory is refused here,
+    // not left to abort the process when the allocation fails.
+    points.try_reserve_exact(total).map_err(|_| {
+        MeshError::Parameter(format!(
+            "{n_area} area samples need {:.1} GB for their positions alone, more than can \
+             be allocated: ask for fewer samples",
+            total.saturating_mul(std::mem::size_of::<DVec3>()) as f64 / 1e9
+        ))
+    })?;
     points.extend(
         vertex_ids
             .iter()

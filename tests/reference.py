@@ -1,6 +1,6 @@
 """Plain-numpy reference implementations, written independently of the Rust kernels.
 
-They follow the specification (../shared/MODEL.md) with vectorised numpy, one formula at a
+They follow the specification (docs/model.md) with vectorised numpy, one formula at a
 time, so that a disagreement points at a bug in one of the two. Also used by ``benches/``
 as the "numpy" column.
 """

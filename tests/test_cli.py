@@ -81,3 +81,31 @@ def test_console_script_runs():
         check=True,
     )
     assert json.loads(out.stdout)["faces"] == 948
+
+
+# --- found by the fuzz campaign (benches/fuzz.py) ------------------------------------------
+
+
+def test_compress_of_a_mesh_reproduced_exactly_exits_0(tmp_path, capsys):
+    """The first pass measured an error of 0 and the next one divided by it: exit 3."""
+    path = tmp_path / "open.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n")
+    argv = ["compress", str(path), "--error", "0.01", "--relative", "--quiet"]
+    assert main([*argv, "-o", str(tmp_path / "out.ply")]) == 0
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["k"],
+        ["plan", "--size", "2KB"],  # was exit 3: TypeError comparing K = None with 0
+        ["compress", "--vertices", "50", "--quiet"],  # was 3 lines: a RuntimeWarning first
+    ],
+)
+def test_a_mesh_spanning_1e308_gets_one_line_and_exit_2(tmp_path, capsys, command):
+    path = tmp_path / "huge.obj"
+    path.write_text("v 0 0 0\nv 1e308 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    code = main([command[0], str(path), *command[1:]])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "more than the supported 1e36" in err, err

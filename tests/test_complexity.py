@@ -378,3 +378,27 @@ def test_bad_estimator_and_non_mesh():
         shape_complexity(TRIANGLE, [[0, 1, 2]], estimator="curvy")
     with pytest.raises(TypeError, match=r"trimesh\.Trimesh"):
         shape_complexity("not a mesh")
+
+
+# --- refusals found by the fuzz campaign (benches/fuzz.py) --------------------------------
+
+
+@pytest.mark.parametrize("flag", ["merge_vertices", "per_edge"])
+def test_flags_that_are_not_booleans_are_refused_naming_them(flag):
+    """merge_vertices=2 raised the binding's "'int' object is not an instance of 'bool'",
+    the argument named only in a note."""
+    mesh = trimesh.creation.icosphere(subdivisions=1)
+    with pytest.raises(TypeError) as caught:
+        shape_complexity(mesh, **{flag: 2})
+    assert flag in str(caught.value)
+
+
+def test_a_mesh_wider_than_the_supported_extent_is_refused():
+    """Squared lengths of a mesh spanning 1e308 overflowed: K was NaN, and `meshbits plan`
+    stopped with an internal error."""
+    v = np.array([[0.0, 0, 0], [1e308, 0, 0], [0, 1, 0], [0, 0, 1]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    with pytest.raises(meshbits.MeshbitsError, match="more than the supported 1e36"):
+        shape_complexity(v, f)
+    v[1, 0] = 1.0
+    assert shape_complexity(v * 1e35, f).k == pytest.approx(shape_complexity(v, f).k)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -272,3 +273,85 @@ def test_calibrate_cli(capsys):
     )
     report = json.loads(capsys.readouterr().out)
     assert 0 < report["alpha"] <= 2 and report["samples"] == 4
+
+
+# --- found by the fuzz campaign (benches/fuzz.py) ------------------------------------------
+
+OPEN_TETRA = (
+    np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]),
+    np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2]]),
+)
+
+
+def test_an_output_with_no_error_at_all_ends_the_loop():
+    """A mesh the first pass reproduces exactly measured an error of 0: the next target,
+    budget / 0, raised ZeroDivisionError (exit 3 at the command line)."""
+    result = compress(OPEN_TETRA, error=0.01, relative=True)
+    assert result.met and result.error == 0.0
+
+
+@pytest.mark.parametrize(
+    ("options", "error", "match"),
+    [
+        ({"vertices": 50, "max_iterations": None}, TypeError, "max_iterations"),
+        # was "'<' not supported between instances of 'NoneType' and 'int'"
+        ({"size": 1 + 2j}, TypeError, "size budget"),
+        # was "float() argument must be a string or a real number, not 'complex'"
+        ({"error": 10**400}, meshbits.MeshbitsError, "error budget"),
+        # was OverflowError
+        ({"size": 16000, "alpha": "x"}, TypeError, "alpha"),
+        # was "can't multiply sequence by non-int of type 'float'"
+        ({"size": 16000, "connectivity_bits": "x"}, TypeError, "connectivity_bits"),
+        # was "unsupported operand type(s) for +: 'float' and 'str'"
+    ],
+)
+def test_bad_options_are_refused_naming_them(options, error, match):
+    with pytest.raises(error, match=match):
+        compress(OPEN_TETRA, **options)
+
+
+def test_simplify_never_asks_for_as_many_faces_as_it_has():
+    """Two triangles to 4 vertices asked fast-simplification for 4 faces out of 2: its
+    ValueError "target_count must be less than the number of faces" escaped."""
+    vertices = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 5, 5], [6, 5, 5], [5, 6, 5]])
+    out_vertices, out_faces = simplify(
+        (vertices, np.array([[0, 1, 2], [3, 4, 5]])), 4, method="fast-simplification"
+    ).mesh
+    assert len(out_faces) >= 1 and len(out_vertices) <= 6
+
+
+@pytest.mark.parametrize(
+    ("target", "error"),
+    [(None, meshbits.MeshbitsError), (np.array([1.0, 2.0]), TypeError), (10**400, meshbits.MeshbitsError)],
+)
+def test_simplify_refuses_a_target_that_is_not_a_number(target, error):
+    """int(target) raised TypeError without the argument's name, or OverflowError."""
+    with pytest.raises(error, match="vertices"):
+        simplify(OPEN_TETRA, target)
+
+
+def tangle() -> tuple[np.ndarray, np.ndarray]:
+    """Suzanne's faces as polygons of 255 consecutive vertices, fan-triangulated (as
+    trimesh reads such a PLY or OBJ): 244,904 faces on 507 vertices, 483 per vertex."""
+    vertices, faces = load("suzanne.ply")
+    n = len(vertices)
+    fans = [[a, (a + k) % n, (a + k + 1) % n] for a in faces[:, 0] for k in range(1, 254)]
+    return vertices, np.array(fans)
+
+
+def test_simplify_refuses_a_tangle_that_would_take_hours():
+    """fast-simplification ran for over 10 minutes on the tangle."""
+    start = time.perf_counter()
+    with pytest.raises(meshbits.MeshbitsError, match="483 per vertex"):
+        simplify(tangle(), 50, method="fast-simplification")
+    assert time.perf_counter() - start < 60.0  # a hang guard, not a speed target
+
+
+def test_compress_refuses_a_tangle_that_would_take_minutes():
+    """With an error budget the plan kept every vertex, so nothing was simplified, but
+    each of 3 passes measured the Hausdorff distance over the 244,904 overlapping faces:
+    170 to 210 s at the command line."""
+    start = time.perf_counter()
+    with pytest.raises(meshbits.MeshbitsError, match="485 per vertex"):  # 2 welded
+        compress(tangle(), error=0.01, relative=True)
+    assert time.perf_counter() - start < 60.0  # a hang guard, not a speed target

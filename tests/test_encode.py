@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import trimesh
@@ -9,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import meshbits
-from meshbits.encode import encode_draco, encode_quantized_ply, fit_size_model
+from meshbits.encode import encode, encode_draco, encode_quantized_ply, fit_size_model
 from meshbits.simplify import closest_level
 
 
@@ -113,3 +116,48 @@ def test_quantized_glb_refuses_more_than_16_bits():
 
     with pytest.raises(ValueError, match="1 to 16"):
         encode_quantized_glb(trimesh.creation.icosphere(1), 17)
+
+
+# --- found by the fuzz campaign (benches/fuzz.py) ------------------------------------------
+
+
+def test_calibrate_on_coordinates_beyond_float32_is_refused_not_crashed(tmp_path):
+    """DracoPy crashed the process (SIGSEGV) encoding a vertex at 3.5e38: `meshbits
+    calibrate` on this 80-byte file died with exit code -11."""
+    path = tmp_path / "far.off"
+    path.write_text(
+        "OFF\n4 4 0\n0 0 0\n3.5e38 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "meshbits.cli", "calibrate", str(path)],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "beyond float32's range" in done.stderr and done.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("fmt", ["glb", "ply"])
+def test_quantized_formats_refuse_coordinates_beyond_float32(fmt):
+    """Positions at 1e39 became infinite float32 values, with a RuntimeWarning."""
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]) * 1e36 + 1e39
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    with pytest.raises(meshbits.MeshbitsError, match="beyond float32's range"):
+        encode((v, f), 8, format=fmt)
+
+
+def test_draco_on_a_mesh_of_degenerate_faces_is_refused_in_words(tmp_path):
+    """DracoPy raised its EncodingFailedException ('Invalid mesh', exit 3 from `meshbits
+    calibrate`) after printing 'Draco encoding error: All triangles are degenerate.' on
+    the process's stderr."""
+    with pytest.raises(meshbits.MeshbitsError, match="all 1 faces are degenerate"):
+        encode_draco((np.zeros((3, 3)), np.array([[0, 1, 2]])), 8)
+    path = tmp_path / "zero.stl"  # a binary STL of one triangle with every corner at 0
+    path.write_bytes(b"x" * 80 + (1).to_bytes(4, "little") + bytes(50))
+    done = subprocess.run(
+        [sys.executable, "-m", "meshbits.cli", "calibrate", str(path)],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "degenerate" in done.stderr or "every face repeats a vertex" in done.stderr

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -499,3 +501,68 @@ def test_cli_json_and_table(capsys):
     assert main(["hausdorff", a, str(DATA / "missing.ply")]) == 2
     assert "no such mesh file" in capsys.readouterr().err
     assert main(["hausdorff", a, b, "--tolerance", "-1", "--quiet"]) == 2
+
+
+# --- refusals found by the fuzz campaign (benches/fuzz.py) --------------------------------
+
+TRIANGLE = (np.eye(3), np.array([[0, 1, 2]]))
+
+
+def test_a_sample_count_beyond_memory_is_refused_not_aborted():
+    """3e9 samples asked for 72 GB at once: the allocation failure aborted Python."""
+    code = (
+        "import numpy as np, meshbits\n"
+        "try:\n"
+        "    meshbits.surface_samples((np.eye(3), [[0, 1, 2]]), samples=3_000_000_000)\n"
+        "except meshbits.MeshbitsError as err:\n"
+        "    print(err)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "3000000000 area samples need 72.0 GB" in done.stdout
+
+
+@pytest.mark.parametrize("name", ["samples", "refine_budget"])
+def test_counts_beyond_2_to_the_32_are_refused(name):
+    """samples=2**64 raised OverflowError from the binding."""
+    with pytest.raises(meshbits.MeshbitsError, match=name):
+        meshbits.hausdorff(TRIANGLE, TRIANGLE, **{name: 2**64})
+    with pytest.raises(meshbits.MeshbitsError, match="samples"):
+        meshbits.surface_samples(TRIANGLE, samples=2**32)
+
+
+def test_a_tolerance_that_is_not_a_number_is_a_type_error():
+    """tolerance='x' raised float()'s ValueError."""
+    with pytest.raises(TypeError, match="tolerance"):
+        meshbits.hausdorff(TRIANGLE, TRIANGLE, tolerance="x")
+
+
+def test_points_beyond_the_supported_reach_are_refused():
+    """A query at 1e300 answered an infinite distance (its square overflowed)."""
+    tree = meshbits.ClosestPoints(TRIANGLE)
+    with pytest.raises(meshbits.MeshbitsError, match=r"point 1 lies 1\.000e300"):
+        tree.query([[0.0, 0.0, 0.0], [1e300, 0.0, 0.0]])
+    assert tree.query([[1e30, 0.0, 0.0]]).distances[0] == pytest.approx(1e30)
+
+
+def test_meshes_too_far_apart_are_refused():
+    """A triangle at -1e308 against one at the origin gave an infinite distance."""
+    far = (np.full((3, 3), -1e308), np.array([[0, 1, 2]]))
+    for a, b in [(far, TRIANGLE), (TRIANGLE, far)]:
+        with pytest.raises(meshbits.MeshbitsError, match="more than the supported 1e36"):
+            meshbits.hausdorff(a, b)
+
+
+def test_samples_of_a_mesh_near_the_float64_limit_are_finite():
+    """The centre (lo + hi) / 2 of a box at -1e308 overflowed: every sample was infinite."""
+    far = (np.full((3, 3), -1e308), np.array([[0, 1, 2]]))
+    points = meshbits.surface_samples(far, samples=10).points
+    assert np.isfinite(points).all() and (points == -1e308).all()
+
+
+def test_ragged_point_lists_are_refused_naming_the_argument():
+    """A list of rows of different lengths raised numpy's ValueError."""
+    with pytest.raises(meshbits.MeshbitsError, match="points must be"):
+        meshbits.ClosestPoints(TRIANGLE).query([[0.0, 0.0, 0.0], [1.0, 2.0]])
+    with pytest.raises(meshbits.MeshbitsError, match="faces must be"):
+        meshbits.surface_samples(np.eye(3), [[0, 1, 2], [0, 1]])

@@ -152,7 +152,7 @@ conn = st.floats(0.0, 8.0)
 log_errors = st.floats(-8.0, -1.0)
 
 
-# --- reference numbers (MODEL.md) --------------------------------------------------------
+# --- reference numbers (docs/model.md) ---------------------------------------------------
 
 
 @pytest.mark.parametrize(
@@ -774,3 +774,28 @@ def test_cli_plan_flat_mesh_exits_2(capsys, tmp_path):
     path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n")
     assert main(["plan", str(path), "--size", "10KB"]) == 2
     assert "no plan" in capsys.readouterr().err
+
+
+# --- refusals found by the fuzz campaign (benches/fuzz.py) --------------------------------
+
+
+@pytest.mark.parametrize(
+    ("plan", "args", "kwargs"),
+    [
+        # Each raised something else: TypeError from exp2 of a 30-digit int, RuntimeError
+        # "could not bracket the root", OverflowError from floor(inf) after a warning.
+        (model.plan_for_size, (1e30, 5e-324), {}),
+        (model.plan_for_size, (1e300, 1e-300), {"method": "asymptotic"}),
+        (model.plan_for_vertices, (1e30, 5e-324), {}),
+        (model.plan_for_vertices, (1e300, 1e-300), {"method": "asymptotic"}),
+        (model.plan_for_error, (5e-324, 10.0), {"grid_size": 1.5}),
+    ],
+)
+def test_plans_beyond_the_float64_range_are_refused(plan, args, kwargs):
+    with pytest.raises(meshbits.MeshbitsError, match="model's numeric range"):
+        plan(*args, **kwargs)
+
+
+def test_plans_near_the_float64_range_still_answer():
+    plan = model.plan_for_error(1e-300, 10.0)
+    assert 1000 < plan.bits < model.MODEL_MAX_BITS and math.isfinite(plan.vertices)

@@ -692,3 +692,27 @@ def test_writers_take_the_extreme_vertex_of_a_simplified_mesh(bunny, fmt):
     outside the quantization box'."""
     result = meshbits.compress(bunny, error=0.002, relative=True, format=fmt, max_iterations=2)
     assert result.size_bits > 0
+
+
+# --- refusals found by the fuzz campaign (benches/fuzz.py) --------------------------------
+
+
+def test_cube_grid_refuses_corners_that_are_not_3_vectors():
+    """Both raised numpy's ValueError ('cannot reshape', 'could not convert')."""
+    with pytest.raises(meshbits.MeshbitsError, match="lo must be a 3-vector"):
+        meshbits.cube_grid((0, 0), (1, 1, 1))
+    with pytest.raises(TypeError, match="hi must be a 3-vector"):
+        meshbits.cube_grid((0, 0, 0), "hi")
+    with pytest.raises(meshbits.MeshbitsError, match="overflows"):
+        meshbits.cube_grid((-1e308,) * 3, (1e308,) * 3)
+
+
+def test_precision_bits_of_coordinates_beyond_float32_warns_nothing():
+    """The float32 round trip warned 'overflow encountered in cast' (an error here)."""
+    vertices = np.array([[0.0, 0, 0], [1e308, 0, 0], [0, 1, 0]])
+    assert meshbits.precision_bits(vertices) == 53
+    assert meshbits.precision_bits(vertices * 1e-300, grid_size=1e300) > 1000
+    with pytest.raises(meshbits.MeshbitsError, match="grid_size must be finite"):
+        meshbits.precision_bits(vertices, grid_size=math.inf)  # was OverflowError
+    with pytest.raises(TypeError, match="grid_size"):
+        meshbits.precision_bits(vertices, grid_size="1")

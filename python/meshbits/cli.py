@@ -867,7 +867,7 @@ def _run_plan(args: argparse.Namespace) -> int:
     _check_size_model(args)
     report = _complexity_report(args.mesh, args)
     k, grid_size = report["k"], report["grid_size"]
-    if not k > 0:
+    if k is None or not k > 0:
         raise UserError(f"K of {args.mesh} is {k}: a flat or open mesh has no plan")
     options = {
         "grid_size": grid_size,

@@ -147,13 +147,16 @@ def shape_complexity(
     """
     if estimator not in ESTIMATORS:
         raise MeshbitsError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
+    for name, flag in (("merge_vertices", merge_vertices), ("per_edge", per_edge)):
+        if not isinstance(flag, (bool, np.bool_)):
+            raise TypeError(f"{name} must be True or False, got {flag!r}")
     vertices, triangles = as_mesh(mesh_or_vertices, faces)
     raw = _core.shape_complexity(
         vertices,
         triangles,
         estimator,
-        merge_vertices,
-        per_edge,
+        bool(merge_vertices),
+        bool(per_edge),
         FLAT_ANGLE,
         ILL_ANGLE,
         ILL_COCIRCULAR,

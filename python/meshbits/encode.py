@@ -89,13 +89,26 @@ class Encoded(ArrayResult):
         return write_atomic(Path(path), self.data)
 
 
+#: Largest float32: Draco, glTF and PLY store positions (and Draco its grid) in float32.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 def _grid(vertices: np.ndarray, origin: Any, grid_size: Any) -> tuple[np.ndarray, float]:
     """The cube grid at ``origin`` (default: the vertices' min corner) with side
-    ``grid_size`` (default: the smallest that holds the vertices)."""
+    ``grid_size`` (default: the smallest that holds the vertices); refused when it or the
+    vertices reach beyond float32's range (DracoPy crashed the process on such a mesh)."""
     lo = vertices.min(axis=0) if origin is None else np.asarray(origin, dtype=np.float64)
     if grid_size is None:
-        return cube_grid(lo, np.maximum(vertices.max(axis=0), lo))
-    return lo, float(grid_size)
+        lo, size = cube_grid(lo, np.maximum(vertices.max(axis=0), lo))
+    else:
+        size = float(grid_size)
+    reach = max(float(np.abs(vertices).max(initial=0.0)), float(np.abs(lo).max()) + size)
+    if not reach <= FLOAT32_MAX:
+        raise MeshbitsError(
+            f"coordinates reach {reach:.4g}: beyond float32's range ({FLOAT32_MAX:.4g}), in "
+            "which Draco, glTF and PLY store positions"
+        )
+    return lo, size
 
 
 def _referenced(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -140,14 +153,25 @@ def encode_draco(
     vertices, faces = as_mesh(mesh)
     bits = _check_bits(bits, FORMAT_MAX_BITS["draco"])
     lo, size = _grid(vertices, origin, grid_size)
-    data = DracoPy.encode(
-        vertices,
-        faces,
-        quantization_bits=bits,
-        compression_level=int(compression_level),
-        quantization_range=size if size > 0 else -1,
-        quantization_origin=lo,
-    )
+    # Draco refuses a mesh whose every face has two corners at one position, and says so
+    # on the process's stderr: refuse it here in words instead.
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    if ((a == b).all(axis=1) | (b == c).all(axis=1) | (a == c).all(axis=1)).all():
+        raise MeshbitsError(
+            f"all {len(faces)} faces are degenerate (two corners at one position): Draco "
+            "encodes none of them"
+        )
+    try:
+        data = DracoPy.encode(
+            vertices,
+            faces,
+            quantization_bits=bits,
+            compression_level=int(compression_level),
+            quantization_range=size if size > 0 else -1,
+            quantization_origin=lo,
+        )
+    except DracoPy.EncodingFailedException as err:
+        raise MeshbitsError(f"Draco could not encode the mesh: {err}") from err
     decoded_vertices, decoded_faces = decode_draco(data)
     return Encoded("draco", data, bits, decoded_vertices, decoded_faces)
 

@@ -10,6 +10,7 @@ through a BVH (``rust/bvh.rs``), and can certify an upper bound.
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -57,11 +58,18 @@ def default_samples(n_faces: int) -> int:
     return int(min(max(per_face, HAUSDORFF_MIN_SAMPLES), HAUSDORFF_MAX_SAMPLES))
 
 
+#: Largest sample count or refinement budget accepted: 2**32 - 1 samples would take
+#: 100 GB for their positions alone.
+MAX_COUNT = 2**32 - 1
+
+
 def _check_count(value: Any, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
     if value < 0:
         raise MeshbitsError(f"{name} must be non-negative, got {value}")
+    if value > MAX_COUNT:
+        raise MeshbitsError(f"{name} must be at most 2**32 - 1, got {value}")
     return int(value)
 
 
@@ -510,6 +518,8 @@ def _symmetric(
 def _check_tolerance(tolerance: Any) -> float | None:
     if tolerance is None:
         return None
+    if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real):
+        raise TypeError(f"tolerance must be a number or None, got {tolerance!r}")
     value = float(tolerance)
     if not (value > 0 and math.isfinite(value)):
         raise MeshbitsError(f"tolerance must be positive and finite, got {tolerance}")

@@ -8,20 +8,46 @@ stored (``process=False``): welding is the job of each algorithm (see ``merge_ve
 
 from __future__ import annotations
 
+import contextlib
 import gzip
 import io as _io
 import json
+import logging
+import mmap
 import os
 import tempfile
+import warnings
+import zlib
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
+from ._filecheck import check_structure, explain
 from .errors import MeshbitsError, MeshFileError
 from .mesh import as_mesh
 
-__all__ = ["check_writable", "example_mesh_path", "load_mesh", "save_mesh", "write_atomic"]
+__all__ = [
+    "GZIP_MAX_RATIO",
+    "GZIP_MIN_LIMIT",
+    "check_writable",
+    "example_mesh_path",
+    "load_mesh",
+    "save_mesh",
+    "write_atomic",
+]
+
+#: A ``.gz`` mesh may inflate to at most this many times its compressed size (meshes
+#: compress 1.5 to 3 times; zeros, a thousand times)...
+GZIP_MAX_RATIO = 100
+#: ...or to this many bytes (64 MiB), whichever is larger.
+GZIP_MIN_LIMIT = 64 << 20
+
+# trimesh logs through the logging module and installs no handler, so that without one
+# Python prints its warnings ("unable to load image", ...) on stderr. meshbits reports a
+# file's problems through exceptions; the records still reach any handler an application
+# configures.
+logging.getLogger("trimesh").addHandler(logging.NullHandler())
 
 
 def example_mesh_path() -> Path:
@@ -33,13 +59,20 @@ def example_mesh_path() -> Path:
 def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """Read a triangle mesh file; return ``(vertices float64 (n, 3), faces int64 (m, 3))``.
 
+    Before trimesh parses a PLY, OFF, STL or GLB file, the counts its header declares are
+    compared with what the file holds (see ``meshbits._filecheck``): a 200-byte file that
+    declares 10**12 vertices is refused at once, without allocating for them. A ``.gz``
+    file may inflate to at most :data:`GZIP_MAX_RATIO` times its size (at least
+    :data:`GZIP_MIN_LIMIT` bytes): beyond that it is refused as a decompression bomb.
+
     Raises
     ------
     FileNotFoundError
         ``path`` does not exist.
     MeshFileError
-        The file cannot be parsed, holds no triangles, or holds NaN or infinite
-        coordinates or vertex indices out of range (a ``ValueError``).
+        The file cannot be parsed, its header disagrees with its content, it holds no
+        triangles, or it holds NaN or infinite coordinates or vertex indices out of range
+        (a ``ValueError``). Nothing else, whatever the file holds.
     """
     import trimesh
 
@@ -47,24 +80,44 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if not path.is_file():
         raise FileNotFoundError(f"no such mesh file: {path}")
     suffixes = [s.lower() for s in path.suffixes]
+    compressed = bool(suffixes) and suffixes[-1] == ".gz"
+    if compressed and len(suffixes) < 2:
+        raise MeshFileError(f"cannot tell the format of {path}: name it like mesh.ply.gz")
+    file_type = suffixes[-2 if compressed else -1].lstrip(".") if suffixes else ""
+    if not file_type:
+        raise MeshFileError(f"cannot tell the format of {path}: name it like mesh.ply")
     try:
-        if suffixes and suffixes[-1] == ".gz":
-            if len(suffixes) < 2:
-                raise MeshFileError(f"cannot tell the format of {path}: name it like mesh.ply.gz")
-            with gzip.open(path, "rb") as handle:
-                data = _io.BytesIO(handle.read())
-            loaded = trimesh.load(data, file_type=suffixes[-2].lstrip("."), process=False)
+        source: Path | _io.BytesIO = path
+        if compressed:
+            source = _gunzip(path)
+            with source.getbuffer() as view:
+                check_structure(file_type, view, len(view))
         else:
-            loaded = trimesh.load(path, process=False)
-        if isinstance(loaded, trimesh.Scene):
-            meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
-            if not meshes:
-                raise MeshFileError(f"{path} holds no triangle mesh")
-            loaded = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
-        if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-            raise MeshFileError(f"{path} holds no triangles")
-        vertices = np.asarray(loaded.vertices, dtype=np.float64)
-        faces = np.asarray(loaded.faces, dtype=np.int64)
+            _check_file(path, file_type)
+    except MeshFileError as err:
+        raise MeshFileError(f"cannot read {path}: {err}") from None
+    except MemoryError as err:
+        raise MeshFileError(f"cannot read {path}: it does not fit in memory") from err
+    except OSError as err:
+        raise MeshFileError(f"cannot read {path}: {err.strerror or err}") from err
+    try:
+        # Corrupt data makes parsers cast NaN to int, overflow and the like: the file is
+        # refused or read all the same, the warnings tell the caller nothing more.
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if compressed:
+                loaded = trimesh.load(source, file_type=file_type, process=False)
+            else:
+                loaded = trimesh.load(path, process=False)
+            if isinstance(loaded, trimesh.Scene):
+                meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+                if not meshes:
+                    raise MeshFileError(f"{path} holds no triangle mesh")
+                loaded = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
+            if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+                raise MeshFileError(f"{path} holds no triangles")
+            vertices = np.asarray(loaded.vertices, dtype=np.float64)
+            faces = np.asarray(loaded.faces, dtype=np.int64)
     except MeshFileError:
         raise
     except MemoryError as err:
@@ -74,13 +127,59 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     except Exception as err:
         # A corrupt file makes a parser fail in any of many ways (struct, unicode, index,
         # attribute errors...): each is this file's fault, reported as such.
-        reason = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise MeshFileError(f"cannot read {path} as a mesh: {reason}") from err
+        raise MeshFileError(f"cannot read {path}: {explain(file_type, err)}") from err
     try:
         as_mesh(vertices, faces)
     except MeshbitsError as err:
         raise MeshFileError(f"{path}: {err}") from err
     return vertices, faces
+
+
+def _check_file(path: Path, file_type: str) -> None:
+    """:func:`meshbits._filecheck.check_structure` on a file, read through a memory map
+    (only the pages the check touches are read)."""
+    if file_type not in ("ply", "off", "stl", "glb"):
+        return
+    with open(path, "rb") as handle:
+        size = os.fstat(handle.fileno()).st_size
+        if size == 0:
+            check_structure(file_type, b"", 0)
+        mapped = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
+        try:
+            try:
+                check_structure(file_type, mapped, size)
+            except MeshFileError as err:
+                # Re-raised once the map is closed: the traceback's frames hold numpy
+                # views of the map, which keep it from closing.
+                refusal = str(err)
+            else:
+                refusal = None
+        finally:
+            with contextlib.suppress(BufferError):  # only after an unexpected error
+                mapped.close()
+    if refusal is not None:
+        raise MeshFileError(refusal)
+
+
+def _gunzip(path: Path) -> _io.BytesIO:
+    """The decompressed content of a gzip file, refused beyond the bomb limit."""
+    limit = max(GZIP_MIN_LIMIT, GZIP_MAX_RATIO * path.stat().st_size)
+    out = _io.BytesIO()
+    try:
+        with gzip.open(path, "rb") as handle:
+            while chunk := handle.read(1 << 20):
+                out.write(chunk)
+                if out.tell() > limit:
+                    raise MeshFileError(
+                        f"it inflates to more than {limit:,} bytes, over {GZIP_MAX_RATIO} "
+                        f"times its size: no mesh compresses that well (a decompression bomb?)"
+                    )
+    except (gzip.BadGzipFile, zlib.error) as err:
+        raise MeshFileError(f"it is not a valid gzip file ({err})") from err
+    except EOFError:
+        raise MeshFileError("the gzip data is truncated") from None
+    out.seek(0)
+    return out
 
 
 def check_writable(path: str | Path) -> Path:

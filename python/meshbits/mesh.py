@@ -39,7 +39,7 @@ def as_points(
         If the shape is not ``(n, 3)``, a value is NaN or infinite, or the array is empty
         and ``allow_empty`` is false.
     """
-    array = np.asarray(points)
+    array = _asarray(points, name, "(n, 3) coordinates")
     if array.dtype == object or not (
         np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)
     ):
@@ -62,8 +62,20 @@ def as_points(
     return out
 
 
+def _asarray(value: Any, name: str, what: str) -> np.ndarray:
+    """``np.asarray(value)``; a ragged sequence (rows of different lengths) is refused
+    naming the argument, not with numpy's ``ValueError``."""
+    try:
+        return np.asarray(value)
+    except ValueError as err:
+        raise MeshbitsError(
+            f"{name} must be {what}, got a {type(value).__name__} whose rows have different "
+            f"lengths ({err})"
+        ) from None
+
+
 def _as_faces(faces: Any, vertex_count: int, keep_int64: bool = False) -> np.ndarray:
-    array = np.asarray(faces)
+    array = _asarray(faces, "faces", "(m, 3) vertex indices")
     if array.dtype == bool or not np.issubdtype(array.dtype, np.integer):
         if array.size == 0 and array.ndim == 2:
             array = array.astype(np.int64)

@@ -8,7 +8,7 @@ Units: sizes in bits, errors in the length unit of the grid size ``S`` (the side
 quantization cube; every error function takes ``grid_size`` and scales by it, default 1 so
 errors are relative to ``S``), ``K`` dimensionless (grid-normalised, ``ShapeComplexity.k``).
 The derivation, with the paper's equation numbers and the places where its print is
-wrong, is in ``docs/model.md``; the reference numbers are in ``MODEL.md``.
+wrong, and the reference numbers, are in ``docs/model.md``.
 
 The error model (Eq. 2, 3, 7, 10, 11)::
 
@@ -195,8 +195,9 @@ def _ridge_exact(theta: Any) -> Any:
 
 
 def _ridge_asymptotic(vertices: Any, k: Any, b0: float) -> Any:
-    """Right side of Eq. 13: ``log2(V/K) + B0`` (bits)."""
-    return np.log2(vertices / k) + b0
+    """Right side of Eq. 13: ``log2(V/K) + B0`` (bits); ``+inf`` where ``V/K`` overflows."""
+    with np.errstate(over="ignore"):
+        return np.log2(vertices / k) + b0
 
 
 def _ridge_left(bits: Any, tau: Any) -> Any:
@@ -222,6 +223,7 @@ def _root_increasing(f: Callable[[np.ndarray], np.ndarray], lo: Any) -> np.ndarr
     lo = lo0.copy()
     width = np.ones_like(lo0)
     hi = lo + width
+    unbounded = np.zeros_like(at_bound)
     for _ in range(200):
         need = (f(hi) <= 0.0) & ~at_bound
         if not need.any():
@@ -229,16 +231,34 @@ def _root_increasing(f: Callable[[np.ndarray], np.ndarray], lo: Any) -> np.ndarr
         lo = np.where(need, hi, lo)
         width = np.where(need, 2.0 * width, width)
         hi = np.where(need, lo + width, hi)
-    else:  # pragma: no cover - f increases to +inf on every caller's domain
-        raise RuntimeError("could not bracket the root")
+    else:
+        # f stays <= 0 up to 2**200: where K / V underflows, theta is 0 and the right side
+        # of Eq. 12 +inf. No root: +inf, which the callers refuse.
+        unbounded = need
     for _ in range(2200):
         mid = 0.5 * (lo + hi)
-        if np.all((mid <= lo) | (mid >= hi)):
+        if np.all(unbounded | (mid <= lo) | (mid >= hi)):
             break
         positive = f(mid) > 0.0
         hi = np.where(positive, mid, hi)
         lo = np.where(positive, lo, mid)
-    return np.where(at_bound, lo0, hi)
+    return np.where(at_bound, lo0, np.where(unbounded, np.inf, hi))
+
+
+#: Largest B a plan may have: 2**-B underflows float64 from about 1,075 bits on, where the
+#: model's errors mean nothing.
+MODEL_MAX_BITS = 1100.0
+
+
+def _check_plan_bits(bits: float, budget: str) -> float:
+    """``bits``, or a refusal naming the budget when it lies beyond the model's range."""
+    if not (math.isfinite(bits) and bits <= MODEL_MAX_BITS):
+        raise MeshbitsError(
+            f"no plan for {budget}: the optimal B would be {bits:.4g} bits per coordinate, "
+            f"beyond the model's numeric range ({MODEL_MAX_BITS:g} bits); K, S or the budget "
+            "is extreme"
+        )
+    return bits
 
 
 # --- public elementwise functions --------------------------------------------------------
@@ -446,7 +466,14 @@ def optimal_bits(
     v, kk, a, t = np.broadcast_arrays(v, kk, a, t)
     tau = t / (3.0 * a)
     right = _ridge_exact(_theta(v, kk)) if exact else _ridge_asymptotic(v, kk, b0_value)
-    return _out(_root_increasing(lambda b: _ridge_left(b, tau) - right, _bits_floor(tau)))
+    bits = _root_increasing(lambda b: _ridge_left(b, tau) - right, _bits_floor(tau))
+    infinite = ~np.isfinite(bits)
+    if infinite.any():
+        raise MeshbitsError(
+            f"no optimal B for V = {float(v[infinite].flat[0]):g} and K = "
+            f"{float(kk[infinite].flat[0]):g}: V / K is beyond the model's numeric range"
+        )
+    return _out(bits)
 
 
 def guaranteed_bits(error: Any, grid_size: Any = 1.0) -> int | np.ndarray:
@@ -745,7 +772,9 @@ def plan_for_size(
     if method == "exact":
         bits = float(_root_increasing(slope_sign, lo))
     else:
-        bits = math.log2(f / (3.0 * p.alpha * p.k)) + p.b0
+        with np.errstate(over="ignore"):
+            bits = float(np.log2(np.float64(f) / (3.0 * p.alpha * p.k))) + p.b0
+    _check_plan_bits(bits, f"size_bits = {f:g} and K = {p.k:g}")
     at_bound = bits <= lo
     bits = max(bits, lo)
     whole = _pick_whole(bits, lambda b: _relative_error(b, vertices_at(b), p))
@@ -805,7 +834,10 @@ def plan_for_error(
             f"error = {budget:g} must be below the grid size S = {p.grid_size:g} "
             "(a single vertex is within S of every point of the grid)"
         )
-    feasible = math.log2(0.5 * SQRT3 / e)  # E_Q(B) = E here: below it no V is enough
+    with np.errstate(over="ignore", divide="ignore"):
+        # E_Q(B) = E here: below it no V is enough.
+        feasible = float(np.log2(0.5 * SQRT3 / np.float64(e)))
+    _check_plan_bits(feasible, f"error = {budget:g} and S = {p.grid_size:g}")
     lo = max(float(_bits_floor(p.tau)), feasible)
 
     def tessellation_left(b: Any) -> Any:
@@ -826,7 +858,9 @@ def plan_for_error(
             return math.inf
         return float(2.0 * p.k / (SQRT3 * _theta_for_relative_error(e_t) ** 2))
 
-    bits = float(_root_increasing(slope_sign, lo))
+    bits = _check_plan_bits(
+        float(_root_increasing(slope_sign, lo)), f"error = {budget:g} and K = {p.k:g}"
+    )
     at_bound = bits <= lo and lo > feasible
     if method == "exact":
         vertices = exact_vertices(bits)
@@ -891,6 +925,7 @@ def plan_for_vertices(
             b0=p.b0,
         )
     )
+    _check_plan_bits(bits, f"vertices = {v:g} and K = {p.k:g}")
     price = LN2 * float(_quantization_relative(bits))
     whole = _pick_whole(bits, lambda b: float(_quantization_relative(b)) + price * b)
     return _allocation("vertices", v, p, bits, v, whole, v, bits <= lo)

@@ -71,6 +71,17 @@ def _as_box(box: Any) -> tuple[tuple[float, ...], tuple[float, ...]] | tuple[Non
     return tuple(corners[0].tolist()), tuple(corners[1].tolist())
 
 
+def _corner(value: Any, name: str) -> np.ndarray:
+    """A box corner as a float64 3-vector; anything else refused naming ``name``."""
+    try:
+        corner = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{name} must be a 3-vector of numbers, got {value!r} ({err})") from None
+    if corner.size != 3:
+        raise MeshbitsError(f"{name} must be a 3-vector, got shape {corner.shape}")
+    return corner.reshape(3)
+
+
 def cube_grid(lo: Any, hi: Any) -> tuple[np.ndarray, float]:
     """Origin and side ``S`` of the cube grid over the box ``[lo, hi]`` (length).
 
@@ -80,11 +91,13 @@ def cube_grid(lo: Any, hi: Any) -> tuple[np.ndarray, float]:
     would leave a point on the box's far face outside the grid. Pass
     ``box=(origin, origin + S)`` to :func:`quantize` or :func:`cluster`.
     """
-    low = np.asarray(lo, dtype=np.float64).reshape(3)
-    high = np.asarray(hi, dtype=np.float64).reshape(3)
+    low, high = _corner(lo, "lo"), _corner(hi, "hi")
     if not (np.isfinite(low).all() and np.isfinite(high).all() and (low <= high).all()):
         raise MeshbitsError(f"box must have finite corners with min <= max, got {low}, {high}")
-    side = float((high - low).max())
+    with np.errstate(over="ignore"):
+        side = float((high - low).max())
+    if not math.isfinite(side):
+        raise MeshbitsError(f"box side overflows float64: from {low} to {high}")
     while (low + side < high).any():
         side = float(np.nextafter(side, np.inf))
     return low, side
@@ -110,13 +123,25 @@ def precision_bits(vertices: Any, grid_size: float | None = None) -> int:
     """
     array = as_points(vertices, "vertices")
     if grid_size is None:
-        grid_size = float((array.max(axis=0) - array.min(axis=0)).max())
+        with np.errstate(over="ignore"):
+            grid_size = float((array.max(axis=0) - array.min(axis=0)).max())
+    elif isinstance(grid_size, bool) or not isinstance(grid_size, numbers.Real):
+        raise TypeError(f"grid_size must be a real number, got {grid_size!r}")
+    grid_size = float(grid_size)
+    if not math.isfinite(grid_size):
+        raise MeshbitsError(
+            f"grid_size must be finite, got {grid_size} (a box side beyond the float64 range?)"
+        )
     largest = float(np.abs(array).max())
     if not grid_size > 0 or largest == 0:
         return MIN_BITS
-    exact32 = np.array_equal(array.astype(np.float32).astype(np.float64), array)
+    with np.errstate(over="ignore"):  # beyond float32's range: not exact, rightly
+        exact32 = np.array_equal(array.astype(np.float32).astype(np.float64), array)
     spacing = float(np.spacing(np.float32(largest) if exact32 else largest))
-    return max(MIN_BITS, math.ceil(math.log2(grid_size / spacing + 1.0)))
+    ratio = grid_size / spacing
+    if not math.isfinite(ratio):  # S / spacing beyond float64: in logarithms
+        return math.ceil(math.log2(grid_size) - math.log2(spacing))
+    return max(MIN_BITS, math.ceil(math.log2(ratio + 1.0)))
 
 
 def _grid_fields(raw: dict[str, Any]) -> dict[str, Any]:

@@ -1130,7 +1130,7 @@ def _interpolate(points: list[tuple[float, float]], x: float, slope: float) -> f
     above = [(xi, yi) for xi, yi in points if xi > x]
     if below and above:
         (x0, y0), (x1, y1) = max(below), min(above)
-        if y1 > y0 > 0:
+        if y1 > y0 > 0 and x0 > 0:
             w = math.log(x / x0) / math.log(x1 / x0)
             return y0 * (y1 / y0) ** w
         return math.sqrt(y0 * y1) if y0 > 0 else y1
@@ -1139,7 +1139,7 @@ def _interpolate(points: list[tuple[float, float]], x: float, slope: float) -> f
         return y1 * x / x1
     if below:
         x0, y0 = max(below)
-        return y0 * x / x0
+        return y0 * x / x0 if x0 > 0 else y0
     return slope * x
 
 

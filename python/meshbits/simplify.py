@@ -19,6 +19,7 @@ count is closest to a target.
 from __future__ import annotations
 
 import math
+import numbers
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -32,9 +33,11 @@ from .mesh import MeshLike, as_mesh
 from .results import ArrayResult
 
 __all__ = [
+    "MAX_FACES_PER_VERTEX",
     "METHODS",
     "Simplified",
     "Simplifier",
+    "check_untangled",
     "closest_level",
     "referenced_vertex_count",
     "simplify",
@@ -51,6 +54,12 @@ _ESCALATION = (3.0, 5.0, 7.0, 10.0)
 
 #: Face-count requests meshopt gets to land a vertex target within ``rtol``.
 _VERTEX_TARGET_TRIES = 5
+#: Most faces per referenced vertex fast-simplification is given (an ordinary surface has
+#: about 2). Its cost grows with the square of the faces around a vertex: Suzanne's faces
+#: turned into polygons of 16 consecutive vertices and fan-triangulated (27 faces per
+#: vertex) took 3 s in one call at agg = 10, polygons of 32 (57 per vertex) 30 s, and
+#: ``meshbits.compress`` on polygons of 255 (483 per vertex) ran for over 10 minutes.
+MAX_FACES_PER_VERTEX = 16
 
 # fast-simplification keeps the mesh it works on in native globals: two calls must not
 # overlap, so every call goes through this lock.
@@ -100,6 +109,19 @@ class Simplified(ArrayResult):
         return self.vertices, self.faces
 
 
+def check_untangled(face_count: int, used: int, what: str) -> None:
+    """Refuse more than :data:`MAX_FACES_PER_VERTEX` faces per referenced vertex."""
+    ratio = face_count / max(used, 1)
+    if ratio > MAX_FACES_PER_VERTEX:
+        raise MeshbitsError(
+            f"the mesh has {face_count:,} faces on {used:,} vertices, {ratio:.0f} per vertex "
+            f"(a surface has about 2; at most {MAX_FACES_PER_VERTEX} are {what}): its "
+            "triangles overlap so much that simplifying or measuring it would take minutes "
+            "to hours. Remove repeated or overlapping faces first (polygons of many corners "
+            "fan-triangulated?)"
+        )
+
+
 def referenced_vertex_count(faces: np.ndarray) -> int:
     """Number of distinct vertices that some face uses."""
     return int(np.unique(np.asarray(faces).ravel()).size)
@@ -113,9 +135,13 @@ def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nd
 def _check_target(name: str, value: Any, smallest: float) -> Any:
     if value is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise TypeError(f"{name} must be a number, got {value!r}")
-    if not (math.isfinite(float(value)) and value >= smallest):
+    try:
+        finite = math.isfinite(value)
+    except OverflowError:  # an int beyond the float range
+        finite = False
+    if not (finite and value >= smallest):
         raise MeshbitsError(f"{name} must be a finite number >= {smallest:g}, got {value!r}")
     return value
 
@@ -356,19 +382,25 @@ def _fast_simplification_to(
     corrected request.
     """
     used = referenced_vertex_count(faces)
-    if target_vertices >= used:
+    if target_vertices >= used or len(faces) < 2:
         return _compact(vertices, faces.astype(np.int64))
+    check_untangled(len(faces), used, "simplified")
     ratio = len(faces) / used
-    target_faces = max(4, round(target_vertices * ratio))
-    agg = aggressiveness
-    out = _fast_simplification(vertices, faces, target_faces, agg, preserve_border)
-    for agg in (a for a in _ESCALATION if a > aggressiveness):
+
+    def request(count: float) -> int:
+        # fast-simplification refuses a target of all the faces or more.
+        return int(min(max(4, round(count)), len(faces) - 1))
+
+    target_faces = request(target_vertices * ratio)
+    # fast-simplification stops after a fixed number of sweeps whose collapse threshold
+    # grows like (sweep + 3) ** agg: a low agg may stop short of the target. Escalate.
+    for agg in [aggressiveness, *(a for a in _ESCALATION if a > aggressiveness)]:
+        out = _fast_simplification(vertices, faces, target_faces, agg, preserve_border)
         if len(out[0]) <= (1 + rtol) * target_vertices:
             break
-        out = _fast_simplification(vertices, faces, target_faces, agg, preserve_border)
     got = len(out[0])
     if 0 < got < (1 - rtol) * target_vertices:
-        target_faces = max(4, round(target_faces * target_vertices / got))
+        target_faces = request(target_faces * target_vertices / got)
         out = _fast_simplification(vertices, faces, target_faces, agg, preserve_border)
     return out
 

@@ -1,0 +1,221 @@
+"""meshbits.load_mesh on damaged files: it raises MeshFileError (or FileNotFoundError) with
+a message that names the problem, emits no warning, and allocates nothing the size of a
+header's claim. Each case was found by the fuzz campaign (benches/fuzz.py,
+docs/reliability.md)."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import struct
+import subprocess
+import sys
+import time
+import warnings
+import zlib
+
+import numpy as np
+import pytest
+
+import meshbits
+from meshbits import io as meshbits_io
+from meshbits.errors import MeshFileError
+
+VERTICES = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+FACES = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
+
+
+def ply(
+    fmt: str = "ascii",
+    *,
+    vertex_count: int | None = None,
+    face_count: int | None = None,
+    faces: list[list[int]] = FACES,
+    count_type: str = "uchar",
+    comment: str = "meshbits test",
+) -> bytes:
+    """A tetrahedron as PLY; the counts in the header may lie."""
+    header = (
+        f"ply\nformat {fmt} 1.0\ncomment {comment}\n"
+        f"element vertex {len(VERTICES) if vertex_count is None else vertex_count}\n"
+        "property float x\nproperty float y\nproperty float z\n"
+        f"element face {len(faces) if face_count is None else face_count}\n"
+        f"property list {count_type} int vertex_indices\nend_header\n"
+    ).encode()
+    if fmt == "ascii":
+        rows = [" ".join(map(str, v)) for v in VERTICES]
+        rows += [" ".join(map(str, [len(f), *f])) for f in faces]
+        return header + ("\n".join(rows) + "\n").encode()
+    data = np.asarray(VERTICES, dtype="<f4").tobytes()
+    counts = {"uchar": "<u1", "uint": "<u4"}[count_type]
+    for face in faces:
+        data += np.array([len(face)], dtype=counts).tobytes() + np.array(face, "<i4").tobytes()
+    return header + data
+
+
+def off(vertex_count: int = 4, face_count: int = 4) -> bytes:
+    lines = ["OFF", f"{vertex_count} {face_count} 0"]
+    lines += [" ".join(map(str, v)) for v in VERTICES]
+    lines += [" ".join(map(str, [3, *f])) for f in FACES]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def stl_binary(count: int | None = None) -> bytes:
+    triangles = np.asarray(VERTICES, dtype="<f4")[np.asarray(FACES)]
+    records = np.zeros(len(FACES), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    records["v"] = triangles
+    n = len(FACES) if count is None else count
+    return b"\0" * 80 + struct.pack("<I", n) + records.tobytes()
+
+
+def glb() -> bytes:
+    import trimesh
+
+    return trimesh.Trimesh(VERTICES, FACES, process=False).export(file_type="glb")
+
+
+def refusal(tmp_path, name: str, data: bytes) -> str:
+    path = tmp_path / name
+    path.write_bytes(data)
+    with pytest.raises(MeshFileError) as caught:
+        meshbits.load_mesh(path)
+    return str(caught.value)
+
+
+def test_the_helpers_write_files_that_load(tmp_path):
+    for name, data in [
+        ("a.ply", ply()),
+        ("b.ply", ply("binary_little_endian")),
+        ("c.ply", ply("binary_little_endian", count_type="uint")),
+        ("d.off", off()),
+        ("e.stl", stl_binary()),
+        ("f.glb", glb()),
+        ("g.ply.gz", gzip.compress(ply())),
+    ]:
+        (tmp_path / name).write_bytes(data)
+        assert meshbits.load_mesh(tmp_path / name)[1].shape == (4, 3), name
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian"])
+@pytest.mark.parametrize("count", [2**31, 10**12])
+def test_a_small_ply_declaring_huge_counts_is_refused_at_once(tmp_path, fmt, count):
+    """ASCII: a huge vertex count read as 'holds no triangles', a huge face count loaded
+    the four faces; binary: 'PLY is unexpected length!'. Now the header is compared with
+    the file's size before any parsing."""
+    for counts in ({"vertex_count": count}, {"face_count": count}):
+        start = time.perf_counter()
+        message = refusal(tmp_path, "m.ply", ply(fmt, **counts))
+        assert time.perf_counter() - start < 1.0
+        assert "the PLY header declares" in message and f"{count:,}" in message, message
+
+
+def test_an_ascii_ply_with_fewer_rows_than_declared_is_refused(tmp_path):
+    """A face count of 2**31 over four faces used to load the four faces."""
+    message = refusal(tmp_path, "m.ply", ply(face_count=2**31))
+    assert "truncated" in message
+
+
+def test_an_off_file_with_fewer_rows_than_declared_is_refused(tmp_path):
+    """A face count of 10**12 over four faces used to load the four faces."""
+    message = refusal(tmp_path, "m.off", off(face_count=10**12))
+    assert "the OFF header declares 4 vertices and 1,000,000,000,000 faces" in message
+
+
+def test_a_binary_stl_whose_count_disagrees_with_its_length_is_refused(tmp_path):
+    """trimesh re-read it as ASCII and failed with "No module named 'charset_normalizer'"."""
+    message = refusal(tmp_path, "m.stl", stl_binary(count=2**32 - 1))
+    assert "the binary STL declares 4,294,967,295 triangles" in message
+
+
+def test_glb_lengths_beyond_the_file_are_refused(tmp_path):
+    """A header length of 2**32 - 1 loaded as if whole. A BIN chunk length of 2**32 - 1
+    made trimesh ask for a 4 GiB read: a MemoryError under the campaign's 4 GiB
+    address-space limit, 'chunk was not expected length!' without one."""
+    data = bytearray(glb())
+    data[8:12] = struct.pack("<I", 2**32 - 1)
+    assert "the GLB header declares 4,294,967,295 bytes" in refusal(tmp_path, "a.glb", bytes(data))
+    data = bytearray(glb())
+    (json_length,) = struct.unpack_from("<I", data, 12)
+    data[20 + json_length : 24 + json_length] = struct.pack("<I", 2**32 - 1)
+    message = refusal(tmp_path, "b.glb", bytes(data))
+    assert "GLB chunk 1 declares 4,294,967,295 bytes" in message
+
+
+def test_a_binary_ply_list_longer_than_the_first_is_refused(tmp_path):
+    """trimesh reads every list as long as the first one: a last face claiming 2**32 - 1
+    corners was read as a triangle."""
+    data = ply("binary_little_endian", count_type="uint")
+    data = data[:-16] + struct.pack("<I", 2**32 - 1) + data[-12:]
+    assert "face 3 has a list of 4294967295 items" in refusal(tmp_path, "m.ply", data)
+
+
+def test_a_gzip_bomb_is_refused_before_it_inflates(tmp_path, monkeypatch):
+    """A 1 MB .ply.gz of zeros inflating to 1 GiB peaked at 5.2 GB of memory."""
+    monkeypatch.setattr(meshbits_io, "GZIP_MIN_LIMIT", 1 << 20)
+    compressor = zlib.compressobj(9, zlib.DEFLATED, 31)
+    data = compressor.compress(ply("binary_little_endian"))
+    data += compressor.compress(bytes(8 << 20)) + compressor.flush()
+    assert len(data) < 20_000
+    assert "it inflates to more than 1,048,576 bytes" in refusal(tmp_path, "m.ply.gz", data)
+
+
+def test_loading_a_damaged_file_emits_no_warning(tmp_path):
+    """A NaN in an ASCII face list made trimesh warn 'invalid value encountered in cast'."""
+    data = ply().replace(b"3 1 2 3\n", b"3 1 nan 3\n")
+    path = tmp_path / "m.ply"
+    path.write_bytes(data)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(MeshFileError):
+            meshbits.load_mesh(path)
+    assert not caught, [str(w.message) for w in caught]
+
+
+def test_a_missing_texture_prints_nothing_on_stderr(tmp_path):
+    """trimesh logged 'unable to load image!' with a traceback, which Python printed on
+    stderr for want of a logging handler."""
+    path = tmp_path / "m.ply"
+    path.write_bytes(ply(comment="TextureFile missing.png"))
+    done = subprocess.run(
+        [sys.executable, "-m", "meshbits.cli", "k", str(path), "--json"],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0 and done.stderr == ""
+    assert json.loads(done.stdout)["faces"] == 4
+
+
+@pytest.mark.parametrize(
+    ("name", "data", "expected"),
+    [
+        # Each used to end in the parser's own words, quoted after it in a comment.
+        ("a.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 41\n", "beyond the 3 items the file defines"),
+        # index 40 is out of bounds for axis 0 with size 3
+        ("b.ply", ply().replace(b"meshbits test", b"\xff\xfe"), "a byte that is not text"),
+        # 'utf-8' codec can't decode byte 0xff in position 8: invalid start byte
+        ("c.ply", ply().replace(b"property float y", b"property foo y"), "unknown type 'foo'"),
+        # 'foo'
+        ("d.ply", ply().replace(b"property float y", b"property float q"), "no property 'y'"),
+        # 'y'
+        (
+            "e.off",
+            off().replace(b"0.0 1.0 0.0\n", b"0.0 x 0.0\n"),
+            "'x' where a number was expected",
+        ),
+        # could not convert string to float: 'x'
+        ("f.off", off().replace(b"4 4 0", b"4 4.5 0"), "the OFF face count is '4.5'"),
+        # invalid literal for int() with base 10: '4.5'
+        ("g.ply", ply().replace(b"element face 4", b"element face 0x4"), "not a whole number"),
+        # invalid literal for int() with base 10: '0x4'
+        ("h.glb", glb()[:100], "truncated"),
+        # Unterminated string starting at: line 1 column 74 (char 73)
+        ("i.txt", ply(), "does not read TXT files"),
+        # file_type 'txt' not supported
+        ("j", ply(), "cannot tell the format"),
+        # file_type 'j' not supported
+    ],
+)
+def test_damaged_files_get_messages_that_name_the_problem(tmp_path, name, data, expected):
+    message = refusal(tmp_path, name, data)
+    assert expected in message, message
+    assert "\n" not in message
