@@ -25,12 +25,15 @@ LOOSE = ["--error", "0.01", "--relative"]
 
 @pytest.fixture
 def library(tmp_path: Path) -> Path:
-    """A library: two tiny meshes (one in a sub-folder), a corrupt mesh, a text file."""
+    """A library: two tiny meshes (one in a sub-folder), three unusable files (a corrupt
+    PLY, an empty PLY, an OBJ without triangles) and a text file."""
     root = tmp_path / "library"
     (root / "animals").mkdir(parents=True)
     shutil.copy(DATA / "bunny_res4.ply", root / "animals" / "bunny.ply")
     shutil.copy(DATA / "suzanne.ply", root / "suzanne.ply")
     (root / "animals" / "broken.ply").write_bytes(b"ply\nformat binary_little_endian 1.0\n")
+    (root / "empty.ply").write_bytes(b"")
+    (root / "points.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")  # no faces
     (root / "notes.txt").write_text("not a mesh\n")
     return root
 
@@ -64,18 +67,30 @@ def run_cli_json(capsys, *argv: str) -> tuple[int, dict]:
 def test_folder_mirrors_subfolders_and_records_the_corrupt_file(library, tmp_path, capsys):
     out = tmp_path / "out"
     code, payload = run_cli_json(capsys, str(library), "-o", str(out), *LOOSE, "--workers", "1")
-    assert code == 2  # one input was unusable
+    assert code == 2  # some inputs were unusable; the others were still compressed
     assert (out / "animals" / "bunny.drc").is_file()
     assert (out / "suzanne.drc").is_file()
-    assert not (out / "animals" / "broken.drc").exists()
+    assert sorted(p.name for p in out.rglob("*.drc")) == ["bunny.drc", "suzanne.drc"]
     assert payload["exit_code"] == 2
-    assert (payload["inputs"], payload["met"], payload["unusable"]) == (3, 2, 1)
+    assert (payload["inputs"], payload["met"], payload["unusable"]) == (5, 2, 3)
     assert payload["ignored"] == {".txt": 1}  # counted, never silently dropped
     rows = {r["relative"]: r for r in report_rows(out)}
-    assert set(rows) == {"animals/bunny.ply", "animals/broken.ply", "suzanne.ply"}
+    assert set(rows) == {
+        "animals/bunny.ply",
+        "animals/broken.ply",
+        "empty.ply",
+        "points.obj",
+        "suzanne.ply",
+    }
+    for name, words in (
+        ("animals/broken.ply", "broken.ply"),
+        ("empty.ply", "empty"),
+        ("points.obj", "triangle"),
+    ):
+        row = rows[name]
+        assert row["status"] == "unusable" and row["output"] is None and not row["met"]
+        assert words in row["message"] and "\n" not in row["message"], row["message"]
     broken = rows["animals/broken.ply"]
-    assert broken["status"] == "unusable" and broken["output"] is None
-    assert "broken.ply" in broken["message"] and "\n" not in broken["message"]
     bunny = rows["animals/bunny.ply"]
     assert bunny["status"] == "met" and bunny["met"] is True and bunny["message"] is None
     assert bunny["output"] == "animals/bunny.drc"
@@ -89,7 +104,7 @@ def test_folder_mirrors_subfolders_and_records_the_corrupt_file(library, tmp_pat
     assert bunny["seconds"] > 0
     assert set(bunny) == set(broken)  # every row has every key
     totals = summary(out)
-    assert (totals["inputs"], totals["met"], totals["unusable"]) == ("3", "2", "1")
+    assert (totals["inputs"], totals["met"], totals["unusable"]) == ("5", "2", "3")
     assert totals["ignored_files"] == "1" and totals["exit_code"] == "2"
     assert int(totals["saved_bytes"]) == sum(
         r["input_bytes"] - r["output_bytes"] for r in rows.values() if r["output"]
@@ -208,7 +223,7 @@ def test_unusable_inputs_are_tried_again(tmp_path, library):
     out = tmp_path / "out"
     meshbits.batch(library, out, error=0.01, relative=True, workers=1)
     again = meshbits.batch(library, out, error=0.01, relative=True, workers=1)
-    assert (again.resumed, again.compressed, again.unusable) == (2, 1, 1)
+    assert (again.resumed, again.compressed, again.unusable) == (2, 3, 3)
 
 
 # --- exit codes and failures -------------------------------------------------------------

@@ -1318,8 +1318,10 @@ def batch(
             by_relative = {t.relative: t for t in to_run}
             for data in runner.results(to_run):
                 row = BatchRow.from_dict(data)
-                report.append(row.to_dict())
+                # Counted before it is written, so that a Ctrl-C between the two cannot
+                # leave a row in the report that the summary does not count.
                 finished[by_relative[row.relative].index] = row
+                report.append(row.to_dict())
                 bar.update(row)
     except KeyboardInterrupt:
         interrupted = True
