@@ -7,10 +7,15 @@ import csv
 import importlib
 import json
 import multiprocessing
+import os
 import shutil
 import sys
+import warnings
 from pathlib import Path
 
+import DracoPy
+import numpy as np
+import pygltflib
 import pytest
 
 import meshbits
@@ -54,6 +59,50 @@ def report_rows(out: Path) -> list[dict]:
 def summary(out: Path) -> dict[str, str]:
     with open(out / batch_module.SUMMARY_NAME, newline="") as handle:
         return {row["metric"]: row["value"] for row in csv.DictReader(handle)}
+
+
+def point_to_surface(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Distance from each point to the nearest triangle, by brute force in numpy (the
+    plane projection when it falls inside the triangle, else the nearest clamped edge
+    projection): an independent reference for the error of an output's vertices."""
+
+    def segment_d2(p, x, y):
+        d = y - x
+        t = (((p - x) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-300)).clip(0, 1)
+        return ((p - (x + t[..., None] * d)) ** 2).sum(-1)
+
+    p = np.asarray(points, dtype=float)[:, None, :]
+    v = np.asarray(vertices, dtype=float)
+    a, b, c = (v[np.asarray(faces)[:, k]][None] for k in range(3))
+    best = np.minimum(np.minimum(segment_d2(p, a, b), segment_d2(p, b, c)), segment_d2(p, c, a))
+    n = np.cross(b - a, c - a)
+    nn = np.maximum((n * n).sum(-1), 1e-300)
+    h = ((p - a) * n).sum(-1) / nn
+    q = p - h[..., None] * n
+    inside = (n * n).sum(-1) > 0
+    for x, y in ((a, b), (b, c), (c, a)):
+        inside = inside & ((np.cross(y - x, q - x) * n).sum(-1) >= 0)
+    return np.sqrt(np.where(inside, np.minimum(best, h * h * nn), best).min(axis=1))
+
+
+def decode_output(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """An output's vertices and faces, read without meshbits: DracoPy for ``.drc``;
+    pygltflib and DracoPy for a Draco ``.glb`` (one node, no transform)."""
+    if path.suffix == ".drc":
+        mesh = DracoPy.decode(path.read_bytes())
+        return np.asarray(mesh.points, dtype=float), np.asarray(mesh.faces).reshape(-1, 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pygltflib on optional fields
+        gltf = pygltflib.GLTF2().load(str(path))
+    assert gltf.extensionsRequired == ["KHR_draco_mesh_compression"]
+    (node,) = gltf.nodes
+    assert node.matrix is None and node.scale is None and node.translation is None
+    (primitive,) = gltf.meshes[node.mesh].primitives
+    view = gltf.bufferViews[primitive.extensions["KHR_draco_mesh_compression"]["bufferView"]]
+    start = view.byteOffset or 0
+    mesh = DracoPy.decode(gltf.binary_blob()[start : start + view.byteLength])
+    assert gltf.accessors[primitive.attributes.POSITION].count == len(mesh.points)
+    return np.asarray(mesh.points, dtype=float), np.asarray(mesh.faces).reshape(-1, 3)
 
 
 def run_cli_json(capsys, *argv: str) -> tuple[int, dict]:
@@ -110,6 +159,27 @@ def test_folder_mirrors_subfolders_and_records_the_corrupt_file(library, tmp_pat
         r["input_bytes"] - r["output_bytes"] for r in rows.values() if r["output"]
     )
     assert (out / batch_module.PLOT_NAME).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("fmt", ["drc", "glb"])
+def test_outputs_read_back_independently_within_the_budget(tmp_path, fmt):
+    root = good_library(tmp_path)
+    out = tmp_path / "out"
+    result = meshbits.batch(root, out, error=0.005, relative=True, format=fmt, workers=1)
+    assert result.exit_code == 0 and len(result.rows) == 2
+    for row in result.rows:
+        vertices, faces = decode_output(out / row.output)
+        assert (len(vertices), len(faces)) == (row.vertices, row.faces)
+        assert len(faces) > 0
+        source_v, source_f = meshbits.load_mesh(row.path)
+        size = float(np.ptp(source_v, axis=0).max())
+        assert row.budget == pytest.approx(0.005 * size, rel=1e-6)
+        # Every output vertex lies on the output surface, so its distance to the input is
+        # a lower bound of the Hausdorff distance: never above the measured error.
+        far = point_to_surface(vertices, source_v, source_f).max()
+        assert far <= row.error * (1 + 1e-6) + 1e-12 * size
+        assert far > 0  # quantized: the vertices did move
+        assert row.error <= row.budget
 
 
 def test_glob_input_relative_to_its_folder(tmp_path):
@@ -188,8 +258,13 @@ def test_rerun_skips_what_is_done_and_force_redoes_it(tmp_path):
     options = {"error": 0.01, "relative": True, "workers": 1}
     first = meshbits.batch(root, out, **options)
     assert (first.compressed, first.resumed) == (2, 0)
+    outputs = sorted(out.rglob("*.drc"))
+    assert len(outputs) == 2
+    written = {p: p.stat().st_mtime_ns for p in outputs}
     second = meshbits.batch(root, out, **options)
     assert (second.compressed, second.resumed) == (0, 2)
+    assert {p: p.stat().st_mtime_ns for p in outputs} == written  # not rewritten
+    assert [r.finished for r in second.rows] == [r.finished for r in first.rows]
     assert second.backend == "none" and second.exit_code == 0
     assert all(r.resumed for r in second.rows)
     assert [r.output_bytes for r in second.rows] == [r.output_bytes for r in first.rows]
@@ -203,9 +278,13 @@ def test_rerun_skips_what_is_done_and_force_redoes_it(tmp_path):
     other = meshbits.batch(root, out, **{**options, "seed": 1})
     assert (other.compressed, other.resumed) == (2, 0)
 
+    before = {p: p.stat().st_mtime_ns for p in outputs}
     forced = meshbits.batch(root, out, **{**options, "seed": 1}, force=True)
     assert (forced.compressed, forced.resumed) == (2, 0)
+    assert all(p.stat().st_mtime_ns != before[p] for p in outputs)  # rewritten
     assert len(report_rows(out)) == 2
+    again = meshbits.batch(root, out, **{**options, "seed": 1})
+    assert (again.compressed, again.resumed) == (0, 2)
 
 
 def test_rows_of_other_inputs_and_cut_lines_are_kept_or_counted(tmp_path):
@@ -326,7 +405,17 @@ def test_the_process_pool_gives_the_serial_results(tmp_path):
     assert not multiprocessing.active_children()
 
 
+def test_progress_bar_shows_eta_and_bytes_saved(tmp_path, capsys):
+    root = good_library(tmp_path)
+    meshbits.batch(root, tmp_path / "out", error=0.01, relative=True, workers=1, progress=True)
+    err = capsys.readouterr().err
+    assert "meshbits batch" in err and "2/2" in err
+    assert "<" in err  # tqdm's [elapsed<remaining]
+    assert "saved" in err and "kB" in err
+
+
 def test_dask_local_cluster(tmp_path, capsys):
+    # CI installs ".[test]", which pulls dask[distributed]: this runs there.
     pytest.importorskip("distributed")
     root = good_library(tmp_path)
     (root / "bad.obj").write_text("v 0 0 0\n")  # no triangles
@@ -339,6 +428,18 @@ def test_dask_local_cluster(tmp_path, capsys):
     assert statuses == {"bad.obj": "unusable", "sub/bunny.ply": "met", "suzanne.ply": "met"}
     assert (tmp_path / "out" / "sub" / "bunny.drc").is_file()
     assert len(report_rows(tmp_path / "out")) == 3
+    # The tasks ran in the cluster's worker processes, which are gone.
+    assert all(not r["worker"].startswith(f"{os.getpid()}@") for r in payload["rows"])
+    assert not multiprocessing.active_children()
+    # Its outputs are the local pool's (the same seed, the same options).
+    local = meshbits.batch(root, tmp_path / "local", error=0.01, relative=True, workers=1)
+    dask_rows = {r["relative"]: r for r in payload["rows"]}
+    for row in local.rows:
+        assert (row.bits, row.vertices, row.output_bytes) == (
+            dask_rows[row.relative]["bits"],
+            dask_rows[row.relative]["vertices"],
+            dask_rows[row.relative]["output_bytes"],
+        )
 
 
 # --- Ctrl-C ------------------------------------------------------------------------------
@@ -375,6 +476,7 @@ def test_ctrl_c_keeps_the_report_of_what_finished(tmp_path, monkeypatch, capsys,
 
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGINT")
 def test_sigint_stops_the_program_with_exit_130(tmp_path):
+    """Ctrl-C at a terminal: SIGINT to the whole process group (the workers too)."""
     import signal
     import subprocess
     import time
@@ -385,7 +487,10 @@ def test_sigint_stops_the_program_with_exit_130(tmp_path):
     out = tmp_path / "out"
     command = [sys.executable, "-m", "meshbits.cli", "batch", str(root), "-o", str(out)]
     process = subprocess.Popen(
-        [*command, *LOOSE, "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        [*command, *LOOSE, "--workers", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
     )
     report = out / batch_module.REPORT_NAME
     deadline = time.monotonic() + 120
@@ -393,12 +498,18 @@ def test_sigint_stops_the_program_with_exit_130(tmp_path):
         if report.is_file() and report.read_text().count("\n") >= 1:
             break
         time.sleep(0.05)
-    process.send_signal(signal.SIGINT)
-    stdout, stderr = process.communicate(timeout=60)
+    os.killpg(process.pid, signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
     if process.returncode == 0:  # pragma: no cover - a very fast machine finished first
         pytest.skip("the batch finished before the signal")
     assert process.returncode == 130, stderr.decode()
     assert b"interrupted" in stderr and b"Traceback" not in stderr
     rows = report_rows(out)
     assert 1 <= len(rows) < 8
-    assert summary(out)["interrupted"] == "True"
+    totals = summary(out)
+    assert totals["interrupted"] == "True"
+    assert int(totals["compressed"]) == len(rows)
+    assert int(totals["compressed"]) + int(totals["not_reached"]) == 8
+    # The rerun keeps what finished and does the rest.
+    rerun = meshbits.batch(root, out, error=0.01, relative=True, workers=1)
+    assert (rerun.resumed, rerun.compressed, rerun.exit_code) == (len(rows), 8 - len(rows), 0)
