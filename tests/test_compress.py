@@ -322,7 +322,11 @@ def test_simplify_never_asks_for_as_many_faces_as_it_has():
 
 @pytest.mark.parametrize(
     ("target", "error"),
-    [(None, meshbits.MeshbitsError), (np.array([1.0, 2.0]), TypeError), (10**400, meshbits.MeshbitsError)],
+    [
+        (None, meshbits.MeshbitsError),
+        (np.array([1.0, 2.0]), TypeError),
+        (10**400, meshbits.MeshbitsError),
+    ],
 )
 def test_simplify_refuses_a_target_that_is_not_a_number(target, error):
     """int(target) raised TypeError without the argument's name, or OverflowError."""
