@@ -135,6 +135,7 @@ def run(name: str, library: Path, **options: Any) -> tuple[BatchResult, dict[str
         "wall_s": wall,
         "worker_s": wall * result.workers,
         "task_s_sum": sum(r.seconds for r in ran),
+        "task_cpu_s_sum": sum(r.cpu_seconds or 0.0 for r in ran),
         "loads": [load, _load()],
     }
     return result, row
@@ -178,6 +179,7 @@ def throughput(args: argparse.Namespace) -> None:
         wall = sum(p["wall_s"] for p in done)
         tasks = sum(p["tasks"] for p in done)
         task_s = sum(p["task_s_sum"] for p in done)
+        cpu_s = sum(p["task_cpu_s_sum"] for p in done)
         rows.append(
             {
                 "run": name,
@@ -189,6 +191,10 @@ def throughput(args: argparse.Namespace) -> None:
                 "meshes_per_s": tasks / wall,
                 "mb_per_s": sum(p["input_bytes"] for p in done) / 1e6 / wall,
                 "task_s_sum": task_s,
+                "task_cpu_s_sum": cpu_s,
+                # CPU time the tasks got over the worker-thread time they had: 1 on an
+                # idle machine, lower when other processes share the cores.
+                "cpu_share": cpu_s / (task_s * done[0]["kernel_threads"]),
                 "overhead_per_task_ms": 1e3 * (sum(p["worker_s"] for p in done) - task_s) / tasks,
                 "loads": [x for p in done for x in p["loads"]],
                 "parts": done,
@@ -203,16 +209,16 @@ def throughput(args: argparse.Namespace) -> None:
     }
     print()
     print(
-        "| run | wall (s) | meshes/s | MB/s | task time, sum (s) | overhead per task (ms) "
-        "| vs serial, 1 thread |"
+        "| run | wall (s) | meshes/s | MB/s | task wall, sum (s) | task CPU, sum (s) "
+        "| CPU share | overhead per task (ms) | vs serial, 1 thread |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for row in rows:
         ratio = f"{base['wall_s'] / row['wall_s']:.2f}x" if base else ""
         print(
             f"| {labels[row['run']]} | {row['wall_s']:.1f} | {row['meshes_per_s']:.2f} "
-            f"| {row['mb_per_s']:.2f} | {row['task_s_sum']:.1f} "
-            f"| {row['overhead_per_task_ms']:.0f} | {ratio} |"
+            f"| {row['mb_per_s']:.2f} | {row['task_s_sum']:.1f} | {row['task_cpu_s_sum']:.1f} "
+            f"| {row['cpu_share']:.2f} | {row['overhead_per_task_ms']:.0f} | {ratio} |"
         )
     loads = [x for row in rows for x in row["loads"]]
     print()

@@ -126,12 +126,15 @@ class BatchRow:
     vertices, faces : int or None
         V and the face count of the output (for a scene, summed over its primitives).
     input_vertices, input_faces : int or None
-        The same of the input.
+        The same of the input (``input_faces`` is None for a scene).
     error : float or None
         The measured Hausdorff error of the output (the file's length units; for a
         scene, the largest world-space error of its primitives).
     seconds : float
         Wall time of the task in its worker, reading and writing included (s).
+    cpu_seconds : float or None
+        CPU time of the worker process during the task, all its threads (s): below
+        ``seconds`` times the kernel threads when the machine is shared.
     input_sha256 : str or None
         SHA-256 of the input's bytes (a ``.gltf``'s buffers and images included).
     options : dict
@@ -174,6 +177,7 @@ class BatchRow:
     input_faces: int | None = None
     error: float | None = None
     seconds: float = 0.0
+    cpu_seconds: float | None = None
     input_sha256: str | None = None
     options: dict[str, Any] = field(default_factory=dict)
     peak_rss_bytes: int | None = None
@@ -610,6 +614,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
 
     _set_threads(task.threads)
     start = time.perf_counter()
+    cpu_start = time.process_time()
     scoped = _reset_peak_rss()
     options = task.options
     row: dict[str, Any] = {
@@ -697,6 +702,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
             "traceback": traceback.format_exc(),
         }
     row["seconds"] = time.perf_counter() - start
+    row["cpu_seconds"] = time.process_time() - cpu_start
     row["peak_rss_bytes"] = _peak_rss()
     row["peak_rss_scope"] = "task" if scoped else "process"
     row["finished"] = _now()
@@ -1052,6 +1058,10 @@ def _summary_rows(result: BatchResult, started: str) -> list[tuple[str, Any]]:
         ("output_to_input_ratio", "" if ratio is None else f"{ratio:.6g}"),
         ("seconds", f"{result.seconds:.3f}"),
         ("task_seconds", f"{sum(r.seconds for r in result.rows if not r.resumed):.3f}"),
+        (
+            "task_cpu_seconds",
+            f"{sum(r.cpu_seconds or 0.0 for r in result.rows if not r.resumed):.3f}",
+        ),
         ("peak_rss_max_bytes", max(peaks) if peaks else ""),
         ("backend", result.backend),
         ("workers", result.workers),
