@@ -660,11 +660,13 @@ def _print_batch(result: Any, args: argparse.Namespace) -> None:
         "internal errors"
     )
     ratio = f", {100 * result.saved_bytes / result.input_bytes:.1f}%" if result.input_bytes else ""
-    where = (
-        "in this process"
-        if result.backend == "serial"
-        else f"on {result.workers} {'Dask' if result.backend == 'dask' else 'process'} workers"
-    )
+    if result.backend == "none":
+        where = "(nothing to run)"
+    elif result.backend == "serial":
+        where = "in this process"
+    else:
+        kind = "Dask" if result.backend == "dask" else "process"
+        where = f"on {result.workers} {kind} workers"
     print(
         f"  {_bytes_text(result.input_bytes)} -> {_bytes_text(result.output_bytes)} (saved "
         f"{_bytes_text(result.saved_bytes)}{ratio}) in {result.seconds:.1f} s {where}"
