@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from . import _core, model
 from ._core import MeshbitsError
+from .batch import BatchInterrupted, BatchResult, BatchRow, batch
 from .complexity import ShapeComplexity, shape_complexity
 from .compress import CompressResult, Iteration, compress
 from .hausdorff import (
@@ -48,6 +49,9 @@ __version__: str = _core.__version__
 
 __all__ = [
     "Allocation",
+    "BatchInterrupted",
+    "BatchResult",
+    "BatchRow",
     "Closest",
     "ClosestPoints",
     "Clustered",
@@ -64,6 +68,7 @@ __all__ = [
     "Simplified",
     "SurfaceSamples",
     "__version__",
+    "batch",
     "cluster",
     "compress",
     "compress_scene",
