@@ -1141,7 +1141,7 @@ def _options(
     seed: int,
     max_iterations: int,
 ) -> dict[str, Any]:
-    from .model import parse_size
+    from .units import parse_size
 
     if (error is None) == (size is None):
         raise MeshbitsError("give exactly one of error, size")
