@@ -89,12 +89,13 @@ pub struct EdgeGeometry {
     pub radius: f64,
     /// `p(e)`, a third of the two triangles' areas (area).
     pub weight: f64,
-    /// `|n1 × n2|` and `-n1 · n2` for the normals `n1 = u × v`, `n2 = u × w`: the bending
-    /// angle is `atan2` of the two (area² · sin φ and area² · cos φ, up to a factor 4).
-    bend_sin: f64,
+    /// `|n1 × n2|²` and `-n1 · n2` for the normals `n1 = u × v`, `n2 = u × w`: the bending
+    /// angle is `atan2` of `sqrt(bend_sin_squared)` and `bend_cos` (area² · sin φ and
+    /// area² · cos φ, up to a factor 4). Squared, so that classifying costs no root.
+    bend_sin_squared: f64,
     bend_cos: f64,
-    /// Edge length (length).
-    pub length: f64,
+    /// `|u|²`, the squared edge length (area).
+    length_squared: f64,
 }
 
 /// Circumcentre of the triangle `(0, u, v)`, relative to its first corner.
@@ -137,41 +138,45 @@ fn classify(a: DVec3, b: DVec3, c: DVec3, d: DVec3, tol: &Thresholds) -> EdgeGeo
     let (u, v, w) = (b - a, c - a, d - a);
     let (n1, n2) = (u.cross(v), u.cross(w));
     let (l1, l2) = (n1.length(), n2.length());
-    let weight = (l1 + l2) / 6.0;
-    let length = u.length();
-    let bend_sin = n1.cross(n2).length();
+    let length_squared = u.length_squared();
     let bend_cos = -n1.dot(n2);
     let mut g = EdgeGeometry {
         kind: EdgeKind::Degenerate,
         radius: f64::INFINITY,
-        weight,
-        bend_sin,
+        // `(l1 + l2) / 6`; a product, as a division costs several.
+        weight: (l1 + l2) * (1.0 / 6.0),
+        bend_sin_squared: 0.0,
         bend_cos,
-        length,
+        length_squared,
     };
-    if length == 0.0 || l1 == 0.0 || l2 == 0.0 || c == d {
-        g.bend_sin = 0.0;
+    // `sqrt` is exact at 0: these are the tests `|u| == 0`, `l1 == 0`, `l2 == 0`.
+    if length_squared == 0.0 || l1 == 0.0 || l2 == 0.0 || c == d {
         return g;
     }
-    // φ ≤ flat_angle  ⇔  cos φ > 0 and sin φ ≤ sin(flat_angle), without an atan2.
+    g.bend_sin_squared = n1.cross(n2).length_squared();
+    // φ ≤ flat_angle  ⇔  cos φ > 0 and sin φ ≤ sin(flat_angle), without an atan2; the sines
+    // compared squared, without a root.
     let scale = l1 * l2;
-    if bend_cos > 0.0 && bend_sin <= tol.sin_flat * scale {
+    let flat = tol.sin_flat * scale;
+    if bend_cos > 0.0 && g.bend_sin_squared <= flat * flat {
         g.kind = EdgeKind::Flat;
         return g;
     }
-    let det = u.dot(v.cross(w));
-    let centre = (u.length_squared() * v.cross(w)
-        + v.length_squared() * w.cross(u)
-        + w.length_squared() * u.cross(v))
-        / (2.0 * det);
+    // Centre offset `num / (2 det)`: one division for the reciprocal, then products. With
+    // `det = 0` (coplanar) or an overflowing reciprocal the sphere is a plane: `r = ∞`.
+    let vxw = v.cross(w);
+    let det = u.dot(vxw);
+    let centre = (length_squared * vxw + v.length_squared() * w.cross(u) + w.length_squared() * n1)
+        * (1.0 / (2.0 * det));
     if det != 0.0 && centre.is_finite() {
         g.radius = centre.length();
     }
     // min(φ, π - φ) < ill_angle  ⇔  sin φ < sin(ill_angle) (for ill_angle < π/2).
-    let near_coplanar = bend_sin < tol.sin_ill * scale;
+    let ill = tol.sin_ill * scale;
+    let near_coplanar = g.bend_sin_squared < ill * ill;
     g.kind = if near_coplanar
         && (circumcentre_offset(u, v, n1) - circumcentre_offset(u, w, n2)).length()
-            < tol.ill_cocircular * length
+            < tol.ill_cocircular * length_squared.sqrt()
     {
         EdgeKind::IllConditioned
     } else {
@@ -185,7 +190,14 @@ impl EdgeGeometry {
     #[inline]
     #[must_use]
     pub fn bending(&self) -> f64 {
-        self.bend_sin.atan2(self.bend_cos)
+        self.bend_sin_squared.sqrt().atan2(self.bend_cos)
+    }
+
+    /// Edge length `|u|` (length).
+    #[inline]
+    #[must_use]
+    pub fn length(&self) -> f64 {
+        self.length_squared.sqrt()
     }
 
     /// This edge's estimate of `p(e) / r(e)` (length).
@@ -195,7 +207,9 @@ impl EdgeGeometry {
         match (self.kind, estimator) {
             (EdgeKind::Curved | EdgeKind::IllConditioned, Estimator::Circumsphere)
             | (EdgeKind::Curved, Estimator::Hybrid) => self.weight / self.radius,
-            (EdgeKind::Curved | EdgeKind::IllConditioned, _) => self.bending() * self.length / 2.0,
+            (EdgeKind::Curved | EdgeKind::IllConditioned, _) => {
+                self.bending() * self.length() / 2.0
+            }
             _ => 0.0,
         }
     }
@@ -305,7 +319,15 @@ struct BlockTerms {
     per_edge: Option<EdgeArrays>,
 }
 
+/// Edges per batch of [`block_terms`].
+const GATHER_BATCH: usize = 32;
+
 /// Classifies and measures the edges of one block.
+///
+/// The edges' far vertices (`hi` and both opposite vertices) lie anywhere in the vertex
+/// array: their loads miss the cache. They are read for a batch of edges first, loads that
+/// do not wait for one another, and the batch is then measured from the copies: the misses
+/// overlap instead of each stalling a long chain of arithmetic.
 fn block_terms(
     vertices: &[[f64; 3]],
     block: BlockEdges<'_>,
@@ -318,30 +340,32 @@ fn block_terms(
         count: [0; 6],
         per_edge: per_edge.then(EdgeArrays::default),
     };
-    for (e, &[lo, hi]) in block.edges.iter().enumerate() {
-        let g = match block.incident(e) {
-            &[c, d] => Some(classify(
-                point(vertices, lo),
-                point(vertices, hi),
-                point(vertices, c),
-                point(vertices, d),
-                tol,
-            )),
-            _ => None,
-        };
-        let kind = match &g {
-            Some(g) => g.kind,
-            None if block.incident(e).len() == 1 => EdgeKind::Boundary,
-            None => EdgeKind::NonManifold,
-        };
-        let contribution = g.map_or(0.0, |g| g.contribution(estimator));
-        out.count[kind as usize] += 1;
-        out.contributions.push(contribution);
-        if let Some(arrays) = &mut out.per_edge {
-            arrays.vertices.push([lo, hi]);
-            arrays.kind.push(kind as u8);
-            arrays.radius.push(g.map_or(f64::NAN, |g| g.radius));
-            arrays.weight.push(g.map_or(f64::NAN, |g| g.weight));
+    let mut corners = [[DVec3::ZERO; 4]; GATHER_BATCH];
+    for first in (0..block.len()).step_by(GATHER_BATCH) {
+        let batch = first..(first + GATHER_BATCH).min(block.len());
+        for (e, p) in batch.clone().zip(&mut corners) {
+            if let &[c, d] = block.incident(e) {
+                let [lo, hi] = block.edges[e];
+                *p = [lo, hi, c, d].map(|i| point(vertices, i));
+            }
+        }
+        for (e, p) in batch.zip(&corners) {
+            let incident = block.incident(e);
+            let g = (incident.len() == 2).then(|| classify(p[0], p[1], p[2], p[3], tol));
+            let kind = match &g {
+                Some(g) => g.kind,
+                None if incident.len() == 1 => EdgeKind::Boundary,
+                None => EdgeKind::NonManifold,
+            };
+            out.count[kind as usize] += 1;
+            out.contributions
+                .push(g.map_or(0.0, |g| g.contribution(estimator)));
+            if let Some(arrays) = &mut out.per_edge {
+                arrays.vertices.push(block.edges[e]);
+                arrays.kind.push(kind as u8);
+                arrays.radius.push(g.map_or(f64::NAN, |g| g.radius));
+                arrays.weight.push(g.map_or(f64::NAN, |g| g.weight));
+            }
         }
     }
     out
