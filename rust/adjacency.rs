@@ -1,16 +1,38 @@
 //! Vertex welding and the unique-edge table of a triangle mesh.
 //!
-//! The edge table groups the three edges of every triangle by their unordered vertex pair,
-//! keeping the vertex opposite the edge in that triangle: a counting sort on the smaller
-//! vertex index followed by a tiny sort inside each bucket, so building it is linear in the
-//! face count and its content does not depend on the number of threads.
+//! The edge table groups the three edges of every triangle by their unordered vertex pair
+//! `(lo, hi)`, keeping the vertex opposite the edge in that triangle. Each half-edge is one
+//! packed integer `(lo mod 2^b) << 2v | hi << v | opposite` (`v` bits per vertex index), so
+//! that integer order is `(lo, hi, opposite)` order within a block of `2^b` vertices:
+//!
+//! 1. the faces are cut into chunks; each chunk, in parallel, counting-sorts its half-edges
+//!    by the block of `lo` into a buffer of its own (one pass to count, one to place);
+//! 2. each block, in parallel, gathers its half-edges from every chunk, counting-sorts them
+//!    by `lo` inside the block (in cache: about 24k half-edges for 4096 vertices) and sorts
+//!    each vertex's few entries; runs of equal `(lo, hi)` are the edges.
+//!
+//! Every face is read twice whatever the thread count, the work is spread over many
+//! blocks, and the table, fully sorted, does not depend on the number of threads or on the
+//! chunking. Block consumers (shape complexity) work on a block's edges while they are in
+//! cache and never build the whole table.
 
 use rayon::prelude::*;
 
-use crate::error::MeshError;
+use crate::error::{MeshError, VertexIndex};
 
-/// At most this many vertex ranges are built in parallel (each one scans all faces).
-const RANGE_PARTS_MAX: usize = 8;
+/// Vertices per block of the edge sort, as a power of two: with about six half-edges per
+/// vertex a block's entries (192 KiB) and its counts stay in a core's L2 cache.
+const BLOCK_BITS: u32 = 12;
+
+/// Narrowest block, in bits, of `u64` half-edge keys; meshes whose vertex indices leave
+/// less room (more than 2^28 vertices) use `u128` keys.
+const MIN_BLOCK_BITS: u32 = 8;
+
+/// Fewest faces per chunk of the counting pass.
+const MIN_FACE_CHUNK: usize = 1 << 15;
+
+/// Vertices per partition of the parallel weld (the partition's table stays in cache).
+const WELD_PARTITION_TARGET: usize = 1 << 15;
 
 /// Result of welding vertices with bit-identical coordinates.
 #[derive(Debug, Clone)]
@@ -44,9 +66,12 @@ fn vertex_hash(key: [u64; 3]) -> u64 {
 /// Welds vertices whose three coordinates are exactly equal (`-0.0 == 0.0`).
 ///
 /// Triangle soups (STL files) repeat every shared vertex once per triangle; without
-/// welding every edge would look like a boundary. Open-addressing hash table with linear
-/// probing, filled in index order so that the first (smallest) index of each set of equal
-/// vertices becomes its representative: expected O(n), deterministic.
+/// welding every edge would look like a boundary. The vertices are split by the top bits
+/// of their hash into partitions of about [`WELD_PARTITION_TARGET`], each listed in
+/// ascending index order; each partition, in parallel, runs an open-addressing table
+/// (linear probing, collisions resolved by full comparison) filled in index order, so the
+/// first (smallest) index of each set of equal vertices becomes its representative:
+/// expected O(n), the same for any thread count.
 #[must_use]
 pub fn weld_identical(vertices: &[[f64; 3]]) -> Weld {
     let n = vertices.len();
@@ -57,29 +82,81 @@ pub fn weld_identical(vertices: &[[f64; 3]]) -> Weld {
             coordinate_key(v[2]),
         ]
     };
-    let hashes: Vec<u64> = vertices.par_iter().map(|v| vertex_hash(key(v))).collect();
-    let capacity = (2 * n).next_power_of_two().max(16);
-    let mask = capacity - 1;
-    let mut slots = vec![u32::MAX; capacity];
-    let mut canonical: Vec<u32> = Vec::with_capacity(n);
+    let hashes: Vec<u64> = vertices
+        .par_iter()
+        .with_min_len(1 << 12)
+        .map(|v| vertex_hash(key(v)))
+        .collect();
+    let part_bits = (n / WELD_PARTITION_TARGET)
+        .max(1)
+        .next_power_of_two()
+        .trailing_zeros();
+    let parts = 1usize << part_bits;
+    let part_of = |h: u64| (h >> 32 >> (32 - part_bits)) as usize;
+    // Each chunk lists its vertices by partition, in index order.
+    let chunk = n.div_ceil(4 * rayon::current_num_threads()).max(1 << 14);
+    let lists: Vec<(Vec<usize>, Vec<u32>)> = hashes
+        .par_chunks(chunk)
+        .enumerate()
+        .map(|(c, hs)| {
+            let mut start = vec![0usize; parts + 1];
+            for &h in hs {
+                start[part_of(h) + 1] += 1;
+            }
+            for p in 0..parts {
+                start[p + 1] += start[p];
+            }
+            let mut cursor = start.clone();
+            let mut list = vec![0u32; hs.len()];
+            for (j, &h) in hs.iter().enumerate() {
+                let slot = &mut cursor[part_of(h)];
+                list[*slot] = (c * chunk + j) as u32;
+                *slot += 1;
+            }
+            (start, list)
+        })
+        .collect();
+    // Each partition, in index order: the pairs (vertex, earlier equal vertex).
+    let merges: Vec<Vec<(u32, u32)>> = (0..parts)
+        .into_par_iter()
+        .map_init(Vec::new, |slots: &mut Vec<u32>, p| {
+            let len: usize = lists.iter().map(|(s, _)| s[p + 1] - s[p]).sum();
+            let capacity = (2 * len).next_power_of_two().max(16);
+            let mask = capacity - 1;
+            slots.clear();
+            slots.resize(capacity, u32::MAX);
+            let mut merges = Vec::new();
+            for (start, list) in &lists {
+                for &i in &list[start[p]..start[p + 1]] {
+                    let h = hashes[i as usize];
+                    let k = key(&vertices[i as usize]);
+                    let mut slot = (h as usize) & mask;
+                    loop {
+                        let occupant = slots[slot];
+                        if occupant == u32::MAX {
+                            slots[slot] = i;
+                            break;
+                        }
+                        if hashes[occupant as usize] == h && key(&vertices[occupant as usize]) == k
+                        {
+                            merges.push((i, occupant));
+                            break;
+                        }
+                        slot = (slot + 1) & mask;
+                    }
+                }
+            }
+            merges
+        })
+        .collect();
+    let mut canonical: Vec<u32> = (0..n as u32)
+        .into_par_iter()
+        .with_min_len(1 << 12)
+        .collect();
     let mut merged = 0;
-    for (i, v) in vertices.iter().enumerate() {
-        let k = key(v);
-        let mut slot = (hashes[i] as usize) & mask;
-        loop {
-            let occupant = slots[slot];
-            if occupant == u32::MAX {
-                slots[slot] = i as u32;
-                canonical.push(i as u32);
-                break;
-            }
-            if hashes[occupant as usize] == hashes[i] && key(&vertices[occupant as usize]) == k {
-                canonical.push(occupant);
-                merged += 1;
-                break;
-            }
-            slot = (slot + 1) & mask;
-        }
+    for (i, first) in merges.into_iter().flatten() {
+        canonical[i as usize] = first;
+        merged += 1;
     }
     Weld { canonical, merged }
 }
@@ -89,6 +166,259 @@ pub fn weld_identical(vertices: &[[f64; 3]]) -> Weld {
 #[must_use]
 pub fn is_index_degenerate(face: &[u32; 3]) -> bool {
     face[0] == face[1] || face[1] == face[2] || face[2] == face[0]
+}
+
+/// A face's corners as `u32` (indices already checked against the vertex count).
+#[inline]
+fn corners<I: VertexIndex>(f: &[I; 3]) -> [u32; 3] {
+    [
+        f[0].to_usize() as u32,
+        f[1].to_usize() as u32,
+        f[2].to_usize() as u32,
+    ]
+}
+
+/// One half-edge packed so that integer order is `(lo, hi, opposite)` order inside a block
+/// of vertices: `local << 2v | hi << v | opposite`, `local = lo mod 2^b`, `v` the bits of a
+/// vertex index field.
+trait HalfEdgeKey: Copy + Ord + Default + Send + Sync {
+    fn pack(local: u32, hi: u32, opposite: u32, v: u32) -> Self;
+    fn local(self, v: u32) -> usize;
+    fn hi(self, v: u32) -> u32;
+    fn opposite(self, v: u32) -> u32;
+}
+
+macro_rules! half_edge_key {
+    ($t:ty) => {
+        impl HalfEdgeKey for $t {
+            #[inline]
+            fn pack(local: u32, hi: u32, opposite: u32, v: u32) -> Self {
+                (<$t>::from(local) << (2 * v)) | (<$t>::from(hi) << v) | <$t>::from(opposite)
+            }
+            #[inline]
+            fn local(self, v: u32) -> usize {
+                (self >> (2 * v)) as usize
+            }
+            #[inline]
+            fn hi(self, v: u32) -> u32 {
+                ((self >> v) & ((1 << v) - 1)) as u32
+            }
+            #[inline]
+            fn opposite(self, v: u32) -> u32 {
+                (self & ((1 << v) - 1)) as u32
+            }
+        }
+    };
+}
+half_edge_key!(u64);
+half_edge_key!(u128);
+
+/// The edges of one block of vertices, sorted by `(lo, hi)`, as [`map_edge_blocks`] hands
+/// them to its consumer: the same layout as an [`EdgeTable`], `starts` local to the block.
+#[derive(Debug, Clone, Copy)]
+pub struct BlockEdges<'a> {
+    pub edges: &'a [[u32; 2]],
+    pub starts: &'a [u32],
+    pub opposite: &'a [u32],
+}
+
+impl BlockEdges<'_> {
+    /// Number of edges in the block.
+    #[inline]
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.edges.len()
+    }
+
+    /// True when the block holds no edge.
+    #[inline]
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.edges.is_empty()
+    }
+
+    /// Opposite vertices of the triangles incident to edge `e`, ascending.
+    #[inline]
+    #[must_use]
+    pub fn incident(&self, e: usize) -> &[u32] {
+        &self.opposite[self.starts[e] as usize..self.starts[e + 1] as usize]
+    }
+}
+
+/// A worker's buffers for one block: sorted keys, per-vertex counts, and the block's table.
+#[derive(Default)]
+struct BlockScratch<K> {
+    sorted: Vec<K>,
+    count: Vec<u32>,
+    edges: Vec<[u32; 2]>,
+    starts: Vec<u32>,
+    opposite: Vec<u32>,
+}
+
+/// Bits needed for the largest vertex index of `vertex_count` vertices (at least 1).
+fn index_bits(vertex_count: usize) -> u32 {
+    (usize::BITS - vertex_count.saturating_sub(1).leading_zeros()).max(1)
+}
+
+/// Builds the edge table block by block (see the module docs) and returns
+/// `consume(block)` for every block of vertices, in vertex order, with the number of faces
+/// that repeat a vertex index (left out of the table).
+///
+/// Faces must already be index-checked against `vertex_count`.
+pub fn map_edge_blocks<I, R, F>(
+    faces: &[[I; 3]],
+    vertex_count: usize,
+    consume: F,
+) -> Result<(Vec<R>, usize), MeshError>
+where
+    I: VertexIndex,
+    R: Send,
+    F: Fn(BlockEdges<'_>) -> R + Sync,
+{
+    if faces.len() > (u32::MAX / 3) as usize || vertex_count > u32::MAX as usize {
+        return Err(MeshError::Parameter(format!(
+            "{} faces or {vertex_count} vertices exceed the supported maximum of {} faces \
+             and 2^32 - 1 vertices",
+            faces.len(),
+            u32::MAX / 3
+        )));
+    }
+    let v = index_bits(vertex_count);
+    if 64 - 2 * v >= MIN_BLOCK_BITS {
+        Ok(map_blocks_with::<u64, I, R, F>(
+            faces,
+            vertex_count,
+            v,
+            BLOCK_BITS.min(64 - 2 * v),
+            consume,
+        ))
+    } else {
+        Ok(map_blocks_with::<u128, I, R, F>(
+            faces,
+            vertex_count,
+            32,
+            BLOCK_BITS,
+            consume,
+        ))
+    }
+}
+
+/// [`map_edge_blocks`] with keys of type `K`, `v` bits per vertex field and blocks of
+/// `2^block_bits` vertices.
+fn map_blocks_with<K, I, R, F>(
+    faces: &[[I; 3]],
+    vertex_count: usize,
+    v: u32,
+    block_bits: u32,
+    consume: F,
+) -> (Vec<R>, usize)
+where
+    K: HalfEdgeKey,
+    I: VertexIndex,
+    R: Send,
+    F: Fn(BlockEdges<'_>) -> R + Sync,
+{
+    let blocks = vertex_count.div_ceil(1 << block_bits).max(1);
+    let block_mask = (1u32 << block_bits) - 1;
+    let parts = (4 * rayon::current_num_threads())
+        .min(faces.len() / MIN_FACE_CHUNK)
+        .max(1);
+    let chunk = faces.len().div_ceil(parts).max(1);
+    // Step 1: per chunk, its half-edges by block (`start[b]..start[b + 1]`).
+    let chunks: Vec<(Vec<usize>, Vec<K>, usize)> = faces
+        .par_chunks(chunk)
+        .map(|chunk| {
+            let mut start = vec![0usize; blocks + 1];
+            let mut degenerate = 0;
+            for f in chunk {
+                let [a, b, c] = corners(f);
+                if is_index_degenerate(&[a, b, c]) {
+                    degenerate += 1;
+                    continue;
+                }
+                for lo in [a.min(b), b.min(c), c.min(a)] {
+                    start[(lo >> block_bits) as usize + 1] += 1;
+                }
+            }
+            for b in 0..blocks {
+                start[b + 1] += start[b];
+            }
+            let mut cursor = start.clone();
+            let mut keys = vec![K::default(); start[blocks]];
+            for f in chunk {
+                let t = corners(f);
+                if is_index_degenerate(&t) {
+                    continue;
+                }
+                for k in 0..3 {
+                    let (a, b, o) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                    let (lo, hi) = (a.min(b), a.max(b));
+                    let slot = &mut cursor[(lo >> block_bits) as usize];
+                    keys[*slot] = K::pack(lo & block_mask, hi, o, v);
+                    *slot += 1;
+                }
+            }
+            (start, keys, degenerate)
+        })
+        .collect();
+    let degenerate = chunks.iter().map(|c| c.2).sum();
+    // Step 2: per block, gather, sort by (lo, hi, opposite), split into edges.
+    let results = (0..blocks)
+        .into_par_iter()
+        .map_init(BlockScratch::<K>::default, |s, b| {
+            let base = (b as u32) << block_bits;
+            let size = (vertex_count - base as usize).min(1 << block_bits);
+            s.count.clear();
+            s.count.resize(size + 1, 0);
+            for (start, keys, _) in &chunks {
+                for &key in &keys[start[b]..start[b + 1]] {
+                    s.count[key.local(v) + 1] += 1;
+                }
+            }
+            for i in 0..size {
+                s.count[i + 1] += s.count[i];
+            }
+            let total = s.count[size] as usize;
+            s.sorted.clear();
+            s.sorted.resize(total, K::default());
+            for (start, keys, _) in &chunks {
+                for &key in &keys[start[b]..start[b + 1]] {
+                    let slot = &mut s.count[key.local(v)];
+                    s.sorted[*slot as usize] = key;
+                    *slot += 1;
+                }
+            }
+            // `count[i]` now ends vertex `i`'s run (and starts vertex `i + 1`'s).
+            s.edges.clear();
+            s.starts.clear();
+            s.opposite.clear();
+            let mut begin = 0;
+            for i in 0..size {
+                let end = s.count[i] as usize;
+                let run = &mut s.sorted[begin..end];
+                run.sort_unstable();
+                let lo = base + i as u32;
+                let mut previous = None;
+                for &key in run.iter() {
+                    let hi = key.hi(v);
+                    if previous != Some(hi) {
+                        s.edges.push([lo, hi]);
+                        s.starts.push(s.opposite.len() as u32);
+                        previous = Some(hi);
+                    }
+                    s.opposite.push(key.opposite(v));
+                }
+                begin = end;
+            }
+            s.starts.push(s.opposite.len() as u32);
+            consume(BlockEdges {
+                edges: &s.edges,
+                starts: &s.starts,
+                opposite: &s.opposite,
+            })
+        })
+        .collect();
+    (results, degenerate)
 }
 
 /// Unique undirected edges of a triangle mesh with the vertex opposite each edge in each
@@ -106,108 +436,29 @@ pub struct EdgeTable {
     pub index_degenerate_faces: usize,
 }
 
-/// The edges whose smaller vertex lies in one range of vertex indices.
-struct EdgeRange {
-    edges: Vec<[u32; 2]>,
-    starts: Vec<usize>,
-    opposite: Vec<u32>,
-}
-
-/// Builds the edges whose smaller vertex is in `v0..v1`: counting sort of the half-edges
-/// by smaller vertex, then a sort of each (tiny) bucket by `(hi, opposite)`.
-fn edge_range(faces: &[[u32; 3]], v0: usize, v1: usize) -> EdgeRange {
-    let in_range = |lo: u32| (v0..v1).contains(&(lo as usize));
-    let mut bucket_starts = vec![0usize; v1 - v0 + 1];
-    for f in faces {
-        if is_index_degenerate(f) {
-            continue;
-        }
-        for lo in [f[0].min(f[1]), f[1].min(f[2]), f[2].min(f[0])] {
-            if in_range(lo) {
-                bucket_starts[lo as usize - v0 + 1] += 1;
-            }
-        }
-    }
-    for i in 0..v1 - v0 {
-        bucket_starts[i + 1] += bucket_starts[i];
-    }
-    // Entry `hi << 32 | opposite`: sorting a bucket's entries orders it by (hi, opposite).
-    let mut cursor = bucket_starts.clone();
-    let mut entries = vec![0u64; bucket_starts[v1 - v0]];
-    for f in faces {
-        if is_index_degenerate(f) {
-            continue;
-        }
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            let lo = a.min(b);
-            if in_range(lo) {
-                let slot = &mut cursor[lo as usize - v0];
-                entries[*slot] = (u64::from(a.max(b)) << 32) | u64::from(f[(k + 2) % 3]);
-                *slot += 1;
-            }
-        }
-    }
-    let mut edges = Vec::with_capacity(entries.len() / 2 + 1);
-    let mut starts = Vec::with_capacity(entries.len() / 2 + 1);
-    for v in v0..v1 {
-        let (b0, b1) = (bucket_starts[v - v0], bucket_starts[v - v0 + 1]);
-        let bucket = &mut entries[b0..b1];
-        bucket.sort_unstable();
-        let mut i = 0;
-        while i < bucket.len() {
-            let hi = bucket[i] >> 32;
-            edges.push([v as u32, hi as u32]);
-            starts.push(b0 + i);
-            while i < bucket.len() && bucket[i] >> 32 == hi {
-                i += 1;
-            }
-        }
-    }
-    let opposite = entries.iter().map(|&e| e as u32).collect();
-    EdgeRange {
-        edges,
-        starts,
-        opposite,
-    }
-}
-
 impl EdgeTable {
-    /// Builds the table. Faces must already be index-checked against the vertex count.
-    ///
-    /// The vertex indices are split into ranges handled in parallel; each range scans all
-    /// faces, so the table is identical for any number of threads.
-    pub fn build(faces: &[[u32; 3]], vertex_count: usize) -> Result<Self, MeshError> {
-        if faces.len() > (u32::MAX / 3) as usize {
-            return Err(MeshError::Parameter(format!(
-                "{} faces exceed the supported maximum of {}",
-                faces.len(),
-                u32::MAX / 3
-            )));
-        }
-        let parts = rayon::current_num_threads().clamp(1, RANGE_PARTS_MAX);
-        let ranges: Vec<EdgeRange> = (0..parts)
-            .into_par_iter()
-            .map(|p| {
-                edge_range(
-                    faces,
-                    p * vertex_count / parts,
-                    (p + 1) * vertex_count / parts,
-                )
-            })
-            .collect();
-        let edge_count = ranges.iter().map(|r| r.edges.len()).sum();
+    /// Builds the table (see the module docs). Faces must already be index-checked
+    /// against the vertex count. The table is identical for any number of threads.
+    pub fn build<I: VertexIndex>(faces: &[[I; 3]], vertex_count: usize) -> Result<Self, MeshError> {
+        let (blocks, index_degenerate_faces) = map_edge_blocks(faces, vertex_count, |b| {
+            (b.edges.to_vec(), b.starts.to_vec(), b.opposite.to_vec())
+        })?;
+        let edge_count = blocks.iter().map(|b| b.0.len()).sum();
         let mut table = EdgeTable {
             edges: Vec::with_capacity(edge_count),
             starts: Vec::with_capacity(edge_count + 1),
-            opposite: Vec::with_capacity(ranges.iter().map(|r| r.opposite.len()).sum()),
-            index_degenerate_faces: faces.iter().filter(|f| is_index_degenerate(f)).count(),
+            opposite: Vec::with_capacity(blocks.iter().map(|b| b.2.len()).sum()),
+            index_degenerate_faces,
         };
-        for range in ranges {
+        for (edges, starts, opposite) in blocks {
             let offset = table.opposite.len();
-            table.edges.extend(range.edges);
-            table.starts.extend(range.starts.iter().map(|s| s + offset));
-            table.opposite.extend(range.opposite);
+            table.edges.extend(edges);
+            table.starts.extend(
+                starts[..starts.len() - 1]
+                    .iter()
+                    .map(|&s| s as usize + offset),
+            );
+            table.opposite.extend(opposite);
         }
         table.starts.push(table.opposite.len());
         Ok(table)
@@ -311,6 +562,73 @@ mod tests {
             table.validate(&faces).unwrap();
             assert_eq!(table.len(), 2 * n as usize + 1);
         }
+    }
+
+    #[test]
+    fn wide_keys_build_the_same_table() {
+        // A band of faces on vertices spread over many blocks, with repeats and a fan.
+        let n = 20_000u32;
+        let mut faces: Vec<[u32; 3]> = (0..3 * n)
+            .map(|i| {
+                let a = (i * 7919) % n;
+                [a, (a + 1 + i % 5) % n, (a * 31 + 17) % n]
+            })
+            .collect();
+        faces.extend_from_within(..100);
+        let narrow = EdgeTable::build(&faces, n as usize).unwrap();
+        narrow.validate(&faces).unwrap();
+        let (wide, degenerate) =
+            map_blocks_with::<u128, u32, _, _>(&faces, n as usize, 32, 5, |b| {
+                b.edges
+                    .iter()
+                    .enumerate()
+                    .map(|(e, &edge)| (edge, b.incident(e).to_vec()))
+                    .collect::<Vec<_>>()
+            });
+        assert_eq!(degenerate, narrow.index_degenerate_faces);
+        let wide: Vec<_> = wide.into_iter().flatten().collect();
+        assert_eq!(wide.len(), narrow.len());
+        for (e, (edge, incident)) in wide.iter().enumerate() {
+            assert_eq!(*edge, narrow.edges[e]);
+            assert_eq!(incident.as_slice(), narrow.incident(e));
+        }
+    }
+
+    #[test]
+    fn signed_indices_build_the_same_table() {
+        let faces = [[0u32, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]];
+        let signed: Vec<[i64; 3]> = faces.iter().map(|f| f.map(i64::from)).collect();
+        let a = EdgeTable::build(&faces, 4).unwrap();
+        let b = EdgeTable::build(&signed, 4).unwrap();
+        assert_eq!(
+            (a.edges, a.starts, a.opposite),
+            (b.edges, b.starts, b.opposite)
+        );
+    }
+
+    #[test]
+    fn weld_over_many_partitions_matches_a_brute_force_map() {
+        // 100k vertices drawn from 3000 distinct points (and signed zeros): 4 partitions.
+        let points: Vec<[f64; 3]> = (0..3000)
+            .map(|i| [f64::from(i % 17), f64::from(i / 17) * 0.5, 0.0])
+            .collect();
+        let v: Vec<[f64; 3]> = (0..100_000u32)
+            .map(|i| {
+                let mut p = points[((i as u64 * 2_654_435_761) % 3000) as usize];
+                if i % 3 == 0 {
+                    p[2] = -0.0;
+                }
+                p
+            })
+            .collect();
+        let weld = weld_identical(&v);
+        let mut first = std::collections::HashMap::new();
+        for (i, p) in v.iter().enumerate() {
+            let key = p.map(coordinate_key);
+            let f = *first.entry(key).or_insert(i as u32);
+            assert_eq!(weld.canonical[i], f, "vertex {i}");
+        }
+        assert_eq!(weld.merged, v.len() - first.len());
     }
 
     #[test]

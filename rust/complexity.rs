@@ -32,9 +32,9 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::adjacency::{EdgeTable, weld_identical};
-use crate::error::{MeshError, check_extent, check_finite, check_indices};
-use crate::reduce::{deterministic_sum, referenced_bbox};
+use crate::adjacency::{BlockEdges, map_edge_blocks, weld_identical};
+use crate::error::{MeshError, VertexIndex, check_extent, check_finite, check_indices};
+use crate::reduce::{SUM_CHUNK, deterministic_sum_parts};
 
 /// Which per-edge estimate of `p(e) / r(e)` to sum.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -89,12 +89,13 @@ pub struct EdgeGeometry {
     pub radius: f64,
     /// `p(e)`, a third of the two triangles' areas (area).
     pub weight: f64,
-    /// `|n1 × n2|` and `-n1 · n2` for the normals `n1 = u × v`, `n2 = u × w`: the bending
-    /// angle is `atan2` of the two (area² · sin φ and area² · cos φ, up to a factor 4).
-    bend_sin: f64,
+    /// `|n1 × n2|²` and `-n1 · n2` for the normals `n1 = u × v`, `n2 = u × w`: the bending
+    /// angle is `atan2` of `sqrt(bend_sin_squared)` and `bend_cos` (area² · sin φ and
+    /// area² · cos φ, up to a factor 4). Squared, so that classifying costs no root.
+    bend_sin_squared: f64,
     bend_cos: f64,
-    /// Edge length (length).
-    pub length: f64,
+    /// `|u|²`, the squared edge length (area).
+    length_squared: f64,
 }
 
 /// Circumcentre of the triangle `(0, u, v)`, relative to its first corner.
@@ -104,47 +105,78 @@ fn circumcentre_offset(u: DVec3, v: DVec3, n: DVec3) -> DVec3 {
     (v.length_squared() * n.cross(u) + u.length_squared() * v.cross(n)) / (2.0 * n.length_squared())
 }
 
+/// The sines that the classification compares with, computed once per mesh.
+#[derive(Debug, Clone, Copy)]
+struct Thresholds {
+    /// `sin(flat_angle)`.
+    sin_flat: f64,
+    /// `sin(ill_angle)`.
+    sin_ill: f64,
+    ill_cocircular: f64,
+}
+
+impl From<&Tolerances> for Thresholds {
+    fn from(tol: &Tolerances) -> Self {
+        Thresholds {
+            sin_flat: tol.flat_angle.sin(),
+            sin_ill: tol.ill_angle.sin(),
+            ill_cocircular: tol.ill_cocircular,
+        }
+    }
+}
+
 /// Classifies the edge `a b` with opposite vertices `c` and `d`, and computes its sphere.
 #[must_use]
 pub fn edge_geometry(a: DVec3, b: DVec3, c: DVec3, d: DVec3, tol: &Tolerances) -> EdgeGeometry {
+    classify(a, b, c, d, &Thresholds::from(tol))
+}
+
+/// [`edge_geometry`] with the thresholds' sines already computed.
+#[inline]
+#[must_use]
+fn classify(a: DVec3, b: DVec3, c: DVec3, d: DVec3, tol: &Thresholds) -> EdgeGeometry {
     let (u, v, w) = (b - a, c - a, d - a);
     let (n1, n2) = (u.cross(v), u.cross(w));
     let (l1, l2) = (n1.length(), n2.length());
-    let weight = (l1 + l2) / 6.0;
-    let length = u.length();
-    let bend_sin = n1.cross(n2).length();
+    let length_squared = u.length_squared();
     let bend_cos = -n1.dot(n2);
     let mut g = EdgeGeometry {
         kind: EdgeKind::Degenerate,
         radius: f64::INFINITY,
-        weight,
-        bend_sin,
+        // `(l1 + l2) / 6`; a product, as a division costs several.
+        weight: (l1 + l2) * (1.0 / 6.0),
+        bend_sin_squared: 0.0,
         bend_cos,
-        length,
+        length_squared,
     };
-    if length == 0.0 || l1 == 0.0 || l2 == 0.0 || c == d {
-        g.bend_sin = 0.0;
+    // `sqrt` is exact at 0: these are the tests `|u| == 0`, `l1 == 0`, `l2 == 0`.
+    if length_squared == 0.0 || l1 == 0.0 || l2 == 0.0 || c == d {
         return g;
     }
-    // φ ≤ flat_angle  ⇔  cos φ > 0 and sin φ ≤ sin(flat_angle), without an atan2.
+    g.bend_sin_squared = n1.cross(n2).length_squared();
+    // φ ≤ flat_angle  ⇔  cos φ > 0 and sin φ ≤ sin(flat_angle), without an atan2; the sines
+    // compared squared, without a root.
     let scale = l1 * l2;
-    if bend_cos > 0.0 && bend_sin <= tol.flat_angle.sin() * scale {
+    let flat = tol.sin_flat * scale;
+    if bend_cos > 0.0 && g.bend_sin_squared <= flat * flat {
         g.kind = EdgeKind::Flat;
         return g;
     }
-    let det = u.dot(v.cross(w));
-    let centre = (u.length_squared() * v.cross(w)
-        + v.length_squared() * w.cross(u)
-        + w.length_squared() * u.cross(v))
-        / (2.0 * det);
+    // Centre offset `num / (2 det)`: one division for the reciprocal, then products. With
+    // `det = 0` (coplanar) or an overflowing reciprocal the sphere is a plane: `r = ∞`.
+    let vxw = v.cross(w);
+    let det = u.dot(vxw);
+    let centre = (length_squared * vxw + v.length_squared() * w.cross(u) + w.length_squared() * n1)
+        * (1.0 / (2.0 * det));
     if det != 0.0 && centre.is_finite() {
         g.radius = centre.length();
     }
     // min(φ, π - φ) < ill_angle  ⇔  sin φ < sin(ill_angle) (for ill_angle < π/2).
-    let near_coplanar = bend_sin < tol.ill_angle.sin() * scale;
+    let ill = tol.sin_ill * scale;
+    let near_coplanar = g.bend_sin_squared < ill * ill;
     g.kind = if near_coplanar
         && (circumcentre_offset(u, v, n1) - circumcentre_offset(u, w, n2)).length()
-            < tol.ill_cocircular * length
+            < tol.ill_cocircular * length_squared.sqrt()
     {
         EdgeKind::IllConditioned
     } else {
@@ -158,7 +190,14 @@ impl EdgeGeometry {
     #[inline]
     #[must_use]
     pub fn bending(&self) -> f64 {
-        self.bend_sin.atan2(self.bend_cos)
+        self.bend_sin_squared.sqrt().atan2(self.bend_cos)
+    }
+
+    /// Edge length `|u|` (length).
+    #[inline]
+    #[must_use]
+    pub fn length(&self) -> f64 {
+        self.length_squared.sqrt()
     }
 
     /// This edge's estimate of `p(e) / r(e)` (length).
@@ -168,7 +207,9 @@ impl EdgeGeometry {
         match (self.kind, estimator) {
             (EdgeKind::Curved | EdgeKind::IllConditioned, Estimator::Circumsphere)
             | (EdgeKind::Curved, Estimator::Hybrid) => self.weight / self.radius,
-            (EdgeKind::Curved | EdgeKind::IllConditioned, _) => self.bending() * self.length / 2.0,
+            (EdgeKind::Curved | EdgeKind::IllConditioned, _) => {
+                self.bending() * self.length() / 2.0
+            }
             _ => 0.0,
         }
     }
@@ -215,10 +256,131 @@ fn point(vertices: &[[f64; 3]], i: u32) -> DVec3 {
     DVec3::from_array(vertices[i as usize])
 }
 
-/// Shape complexity of a triangle mesh (paper Sec. 4.2). See the module docs for the math.
-pub fn shape_complexity(
+/// What one pass over the faces measures: the total area, summed in the fixed chunks of
+/// [`crate::reduce::deterministic_sum`] (so the same to the bit as summing an array of
+/// face areas), the bounding box of the referenced vertices, and whether an index fell
+/// outside the vertices.
+struct FacePass {
+    area: f64,
+    bbox_min: [f64; 3],
+    bbox_max: [f64; 3],
+    bad_index: bool,
+}
+
+/// Area, box and index check in one parallel pass over the faces.
+fn face_pass<I: VertexIndex>(vertices: &[[f64; 3]], faces: &[[I; 3]]) -> FacePass {
+    let partial: Vec<(f64, DVec3, DVec3, bool)> = faces
+        .par_chunks(SUM_CHUNK)
+        .map(|chunk| {
+            let (mut lo, mut hi, mut bad) = (DVec3::INFINITY, DVec3::NEG_INFINITY, false);
+            let area = chunk
+                .iter()
+                .map(|f| {
+                    let (Some(a), Some(b), Some(c)) = (
+                        vertices.get(f[0].to_usize()),
+                        vertices.get(f[1].to_usize()),
+                        vertices.get(f[2].to_usize()),
+                    ) else {
+                        bad = true;
+                        return 0.0;
+                    };
+                    let (a, b, c) = (
+                        DVec3::from_array(*a),
+                        DVec3::from_array(*b),
+                        DVec3::from_array(*c),
+                    );
+                    lo = lo.min(a).min(b).min(c);
+                    hi = hi.max(a).max(b).max(c);
+                    (b - a).cross(c - a).length() / 2.0
+                })
+                .sum::<f64>();
+            (area, lo, hi, bad)
+        })
+        .collect();
+    let (mut lo, mut hi, mut bad) = (DVec3::INFINITY, DVec3::NEG_INFINITY, false);
+    for p in &partial {
+        lo = lo.min(p.1);
+        hi = hi.max(p.2);
+        bad |= p.3;
+    }
+    FacePass {
+        area: partial.iter().map(|p| p.0).sum(),
+        bbox_min: lo.to_array(),
+        bbox_max: hi.to_array(),
+        bad_index: bad,
+    }
+}
+
+/// One block's share of the edge pass: its contributions in edge order, its class counts
+/// and, when asked for, its per-edge arrays.
+struct BlockTerms {
+    contributions: Vec<f64>,
+    count: [usize; 6],
+    per_edge: Option<EdgeArrays>,
+}
+
+/// Edges per batch of [`block_terms`].
+const GATHER_BATCH: usize = 32;
+
+/// Classifies and measures the edges of one block.
+///
+/// The edges' far vertices (`hi` and both opposite vertices) lie anywhere in the vertex
+/// array: their loads miss the cache. They are read for a batch of edges first, loads that
+/// do not wait for one another, and the batch is then measured from the copies: the misses
+/// overlap instead of each stalling a long chain of arithmetic.
+fn block_terms(
     vertices: &[[f64; 3]],
-    faces: &[[u32; 3]],
+    block: BlockEdges<'_>,
+    estimator: Estimator,
+    tol: &Thresholds,
+    per_edge: bool,
+) -> BlockTerms {
+    let mut out = BlockTerms {
+        contributions: Vec::with_capacity(block.len()),
+        count: [0; 6],
+        per_edge: per_edge.then(EdgeArrays::default),
+    };
+    let mut corners = [[DVec3::ZERO; 4]; GATHER_BATCH];
+    for first in (0..block.len()).step_by(GATHER_BATCH) {
+        let batch = first..(first + GATHER_BATCH).min(block.len());
+        for (e, p) in batch.clone().zip(&mut corners) {
+            if let &[c, d] = block.incident(e) {
+                let [lo, hi] = block.edges[e];
+                *p = [lo, hi, c, d].map(|i| point(vertices, i));
+            }
+        }
+        for (e, p) in batch.zip(&corners) {
+            let incident = block.incident(e);
+            let g = (incident.len() == 2).then(|| classify(p[0], p[1], p[2], p[3], tol));
+            let kind = match &g {
+                Some(g) => g.kind,
+                None if incident.len() == 1 => EdgeKind::Boundary,
+                None => EdgeKind::NonManifold,
+            };
+            out.count[kind as usize] += 1;
+            out.contributions
+                .push(g.map_or(0.0, |g| g.contribution(estimator)));
+            if let Some(arrays) = &mut out.per_edge {
+                arrays.vertices.push(block.edges[e]);
+                arrays.kind.push(kind as u8);
+                arrays.radius.push(g.map_or(f64::NAN, |g| g.radius));
+                arrays.weight.push(g.map_or(f64::NAN, |g| g.weight));
+            }
+        }
+    }
+    out
+}
+
+/// Shape complexity of a triangle mesh (paper Sec. 4.2). See the module docs for the math.
+/// Faces come as `u32` or `i64` indices ([`VertexIndex`]), checked here.
+///
+/// Passes: the vertices' finiteness; the faces' indices, areas and box (one pass); the
+/// weld; then the edge table block by block ([`map_edge_blocks`]), each block's edges
+/// classified and measured while in cache. The result is the same to the bit for any
+/// number of threads: the area and K are sums in fixed chunks of the face and edge orders.
+pub fn shape_complexity<I: VertexIndex>(
+    vertices: &[[f64; 3]],
+    faces: &[[I; 3]],
     estimator: Estimator,
     merge_vertices: bool,
     per_edge: bool,
@@ -231,95 +393,95 @@ pub fn shape_complexity(
             faces.len()
         )));
     }
-    check_finite(vertices)?;
-    check_indices(faces, vertices.len())?;
-
-    let (faces, merged_vertices): (std::borrow::Cow<[[u32; 3]]>, usize) = if merge_vertices {
+    let all_finite = vertices.par_chunks(SUM_CHUNK).all(|c| {
+        c.iter()
+            .all(|v| v[0].is_finite() & v[1].is_finite() & v[2].is_finite())
+    });
+    if !all_finite {
+        check_finite(vertices)?;
+    }
+    let pass = face_pass(vertices, faces);
+    if pass.bad_index {
+        check_indices(faces, vertices.len())?;
+    }
+    if merge_vertices {
         let weld = weld_identical(vertices);
-        if weld.merged == 0 {
-            (faces.into(), 0)
-        } else {
+        if weld.merged > 0 {
             let c = &weld.canonical;
-            let remapped = faces
+            let remapped: Vec<[u32; 3]> = faces
                 .par_iter()
-                .map(|f| [c[f[0] as usize], c[f[1] as usize], c[f[2] as usize]])
-                .collect::<Vec<_>>();
-            (remapped.into(), weld.merged)
+                .with_min_len(1 << 12)
+                .map(|f| [c[f[0].to_usize()], c[f[1].to_usize()], c[f[2].to_usize()]])
+                .collect();
+            let pass = face_pass(vertices, &remapped);
+            return edge_pass(
+                vertices,
+                &remapped,
+                pass,
+                weld.merged,
+                estimator,
+                per_edge,
+                tol,
+            );
         }
-    } else {
-        (faces.into(), 0)
-    };
-    let faces: &[[u32; 3]] = &faces;
-    let (bbox_min, bbox_max) = referenced_bbox(vertices, faces);
-    check_extent(bbox_min, bbox_max)?;
+    }
+    edge_pass(vertices, faces, pass, 0, estimator, per_edge, tol)
+}
 
-    let face_areas: Vec<f64> = faces
-        .par_iter()
-        .map(|f| {
-            let a = point(vertices, f[0]);
-            (point(vertices, f[1]) - a)
-                .cross(point(vertices, f[2]) - a)
-                .length()
-                / 2.0
-        })
-        .collect();
-    let area = deterministic_sum(&face_areas);
+/// The rest of [`shape_complexity`] on index-checked (and welded) faces.
+fn edge_pass<I: VertexIndex>(
+    vertices: &[[f64; 3]],
+    faces: &[[I; 3]],
+    pass: FacePass,
+    merged_vertices: usize,
+    estimator: Estimator,
+    per_edge: bool,
+    tol: &Tolerances,
+) -> Result<Complexity, MeshError> {
+    let FacePass {
+        area,
+        bbox_min,
+        bbox_max,
+        ..
+    } = pass;
+    check_extent(bbox_min, bbox_max)?;
     if area.is_nan() || area <= 0.0 {
         return Err(MeshError::Empty(format!(
             "mesh has zero surface area: all {} faces are degenerate",
             faces.len()
         )));
     }
-
-    let table = EdgeTable::build(faces, vertices.len())?;
-    let interior_geometry = |e: usize| -> Option<EdgeGeometry> {
-        match table.incident(e) {
-            &[c, d] => {
-                let [lo, hi] = table.edges[e];
-                Some(edge_geometry(
-                    point(vertices, lo),
-                    point(vertices, hi),
-                    point(vertices, c),
-                    point(vertices, d),
-                    tol,
-                ))
-            }
-            _ => None,
-        }
-    };
-    let kind_of = |e: usize, g: &Option<EdgeGeometry>| match g {
-        Some(g) => g.kind,
-        None if table.incident(e).len() == 1 => EdgeKind::Boundary,
-        None => EdgeKind::NonManifold,
-    };
-    let (kinds, contributions): (Vec<u8>, Vec<f64>) = (0..table.len())
-        .into_par_iter()
-        .map(|e| {
-            let g = interior_geometry(e);
-            (
-                kind_of(e, &g) as u8,
-                g.map_or(0.0, |g| g.contribution(estimator)),
-            )
-        })
-        .unzip();
-    let k_raw = deterministic_sum(&contributions);
-
+    let tol = Thresholds::from(tol);
+    let (mut blocks, degenerate_faces) = map_edge_blocks(faces, vertices.len(), |block| {
+        block_terms(vertices, block, estimator, &tol, per_edge)
+    })?;
+    let contributions: Vec<Vec<f64>> = blocks
+        .iter_mut()
+        .map(|b| std::mem::take(&mut b.contributions))
+        .collect();
+    let k_raw = deterministic_sum_parts(&contributions);
     let mut count = [0usize; 6];
-    for &kind in &kinds {
-        count[kind as usize] += 1;
-    }
-    let per_edge = per_edge.then(|| {
-        let (radius, weight): (Vec<f64>, Vec<f64>) = (0..table.len())
-            .into_par_iter()
-            .map(|e| interior_geometry(e).map_or((f64::NAN, f64::NAN), |g| (g.radius, g.weight)))
-            .unzip();
-        EdgeArrays {
-            vertices: table.edges.clone(),
-            kind: kinds,
-            radius,
-            weight,
-            contribution: contributions,
+    for b in &blocks {
+        for (total, c) in count.iter_mut().zip(b.count) {
+            *total += c;
         }
+    }
+    let edges: usize = count.iter().sum();
+    let per_edge = per_edge.then(|| {
+        let mut arrays = EdgeArrays {
+            vertices: Vec::with_capacity(edges),
+            kind: Vec::with_capacity(edges),
+            radius: Vec::with_capacity(edges),
+            weight: Vec::with_capacity(edges),
+            contribution: contributions.concat(),
+        };
+        for b in blocks.iter_mut().filter_map(|b| b.per_edge.take()) {
+            arrays.vertices.extend(b.vertices);
+            arrays.kind.extend(b.kind);
+            arrays.radius.extend(b.radius);
+            arrays.weight.extend(b.weight);
+        }
+        arrays
     });
     let boundary_edges = count[EdgeKind::Boundary as usize];
     let nonmanifold_edges = count[EdgeKind::NonManifold as usize];
@@ -328,15 +490,15 @@ pub fn shape_complexity(
         area,
         bbox_min,
         bbox_max,
-        edges: table.len(),
-        interior_edges: table.len() - boundary_edges - nonmanifold_edges,
+        edges,
+        interior_edges: edges - boundary_edges - nonmanifold_edges,
         boundary_edges,
         nonmanifold_edges,
         flat_edges: count[EdgeKind::Flat as usize],
         ill_conditioned_edges: count[EdgeKind::IllConditioned as usize],
         degenerate_edges: count[EdgeKind::Degenerate as usize],
         merged_vertices,
-        degenerate_faces: table.index_degenerate_faces,
+        degenerate_faces,
         per_edge,
     })
 }
@@ -358,7 +520,7 @@ mod tests {
             [0.0, 0.0, 1.0],
         ];
         let f = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
-        let err = shape_complexity(&v, &f, Estimator::Circumsphere, true, false, &tol());
+        let err = shape_complexity::<u32>(&v, &f, Estimator::Circumsphere, true, false, &tol());
         assert!(matches!(err, Err(MeshError::Parameter(_))), "{err:?}");
     }
 

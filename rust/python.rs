@@ -104,13 +104,14 @@ fn parse_estimator(name: &str) -> PyResult<Estimator> {
 }
 
 /// Shape complexity; returns a dict of raw measurements (see `meshbits.complexity`).
+/// `faces` may be uint32 or int64; the kernel checks the indices.
 #[pyfunction]
 #[pyo3(signature = (vertices, faces, estimator, merge_vertices, per_edge, flat_angle, ill_angle, ill_cocircular))]
 #[allow(clippy::too_many_arguments)]
 fn shape_complexity<'py>(
     py: Python<'py>,
     vertices: PyReadonlyArray2<'py, f64>,
-    faces: PyReadonlyArray2<'py, u32>,
+    faces: FaceArray<'py>,
     estimator: &str,
     merge_vertices: bool,
     per_edge: bool,
@@ -124,10 +125,21 @@ fn shape_complexity<'py>(
         ill_angle,
         ill_cocircular,
     };
-    let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
-    let c = run_detached(py, || {
-        complexity::shape_complexity(v, f, estimator, merge_vertices, per_edge, &tol)
-    })?;
+    let v = triples(&vertices, "vertices")?;
+    let c = match &faces {
+        FaceArray::U32(f) => {
+            let f = triples(f, "faces")?;
+            run_detached(py, || {
+                complexity::shape_complexity(v, f, estimator, merge_vertices, per_edge, &tol)
+            })?
+        }
+        FaceArray::I64(f) => {
+            let f = triples(f, "faces")?;
+            run_detached(py, || {
+                complexity::shape_complexity(v, f, estimator, merge_vertices, per_edge, &tol)
+            })?
+        }
+    };
     let out = PyDict::new(py);
     out.set_item("k_raw", c.k_raw)?;
     out.set_item("area", c.area)?;

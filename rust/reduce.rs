@@ -7,7 +7,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 /// Edges per chunk of the fixed-order parallel sum (keeps results thread-count independent).
-const SUM_CHUNK: usize = 1 << 12;
+pub const SUM_CHUNK: usize = 1 << 12;
 
 /// Sums in fixed chunks so the result does not depend on the number of threads.
 #[must_use]
@@ -15,6 +15,35 @@ pub fn deterministic_sum(values: &[f64]) -> f64 {
     let partial: Vec<f64> = values
         .par_chunks(SUM_CHUNK)
         .map(|c| c.iter().sum::<f64>())
+        .collect();
+    partial.iter().sum()
+}
+
+/// [`deterministic_sum`] of the concatenation of `parts`, to the bit, without building
+/// it: every chunk of [`SUM_CHUNK`] consecutive values is summed in order across the parts
+/// it straddles.
+#[must_use]
+pub fn deterministic_sum_parts(parts: &[Vec<f64>]) -> f64 {
+    let mut ends = Vec::with_capacity(parts.len());
+    let mut total = 0;
+    for p in parts {
+        total += p.len();
+        ends.push(total);
+    }
+    let partial: Vec<f64> = (0..total.div_ceil(SUM_CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let (begin, end) = (c * SUM_CHUNK, ((c + 1) * SUM_CHUNK).min(total));
+            // The first part holding index `begin`, then on through the following parts.
+            let first = ends.partition_point(|&e| e <= begin);
+            let offset = begin - (ends[first] - parts[first].len());
+            parts[first..]
+                .iter()
+                .flatten()
+                .skip(offset)
+                .take(end - begin)
+                .sum::<f64>()
+        })
         .collect();
     partial.iter().sum()
 }
@@ -81,6 +110,28 @@ mod tests {
             })
             .collect();
         assert!(sums.windows(2).all(|w| w[0] == w[1]));
+    }
+
+    #[test]
+    fn the_sum_of_parts_is_the_sum_of_their_concatenation() {
+        let values: Vec<f64> = (0..50_000).map(|i| 1.0 / (3.0 + f64::from(i))).collect();
+        for sizes in [vec![50_000], vec![1, 4095, 4097, 0, 41_807], vec![123; 406]] {
+            let mut parts = Vec::new();
+            let mut rest = &values[..];
+            for &s in &sizes {
+                let s = s.min(rest.len());
+                parts.push(rest[..s].to_vec());
+                rest = &rest[s..];
+            }
+            parts.push(rest.to_vec());
+            let sum = deterministic_sum_parts(&parts);
+            assert_eq!(
+                sum.to_bits(),
+                deterministic_sum(&values).to_bits(),
+                "{sizes:?}"
+            );
+        }
+        assert_eq!(deterministic_sum_parts(&[]), deterministic_sum(&[]));
     }
 
     #[test]

@@ -28,9 +28,15 @@ def test_valid_call_returns_raw_dict():
 
 def test_no_implicit_dtype_cast():
     with pytest.raises(TypeError):
-        call(V, F.astype(np.int64))
+        call(V, F.astype(np.int32))
     with pytest.raises(TypeError):
         call(V.astype(np.float32), F)
+
+
+def test_int64_faces_are_read_as_they_are():
+    assert call(V, F.astype(np.int64)) == call(V, F)
+    with pytest.raises(MeshbitsError, match="negative"):
+        call(V, np.array([[0, 1, -1]], dtype=np.int64))
 
 
 def test_layout_is_checked_in_rust():

@@ -135,7 +135,7 @@ class MeshbitsError(ValueError): ...
 
 def shape_complexity(
     vertices: npt.NDArray[np.float64],
-    faces: npt.NDArray[np.uint32],
+    faces: npt.NDArray[np.uint32] | npt.NDArray[np.int64],
     estimator: str,
     merge_vertices: bool,
     per_edge: bool,

@@ -150,19 +150,26 @@ def shape_complexity(
     for name, flag in (("merge_vertices", merge_vertices), ("per_edge", per_edge)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"{name} must be True or False, got {flag!r}")
-    vertices, triangles = as_mesh(mesh_or_vertices, faces)
-    raw: dict[str, Any] = dict(
-        _core.shape_complexity(
-            vertices,
-            triangles,
-            estimator,
-            bool(merge_vertices),
-            bool(per_edge),
-            FLAT_ANGLE,
-            ILL_ANGLE,
-            ILL_COCIRCULAR,
+    # The kernel reads int64 faces as they are, checks the indices and refuses NaN or
+    # infinite coordinates in its own passes; a refused mesh is checked again here for a
+    # message naming the row.
+    vertices, triangles = as_mesh(mesh_or_vertices, faces, keep_int64=True, check_finite=False)
+    try:
+        raw: dict[str, Any] = dict(
+            _core.shape_complexity(
+                vertices,
+                triangles,
+                estimator,
+                bool(merge_vertices),
+                bool(per_edge),
+                FLAT_ANGLE,
+                ILL_ANGLE,
+                ILL_COCIRCULAR,
+            )
         )
-    )
+    except MeshbitsError:
+        as_mesh(mesh_or_vertices, faces)
+        raise
     grid_size = float(np.max(np.subtract(raw.pop("bbox_max"), raw.pop("bbox_min"))))
     k_raw = raw.pop("k_raw")
     return ShapeComplexity(

@@ -2,7 +2,7 @@
 
 King & Rossignac 1999, Sec. 1.1 and 3.3 (the grid and its error bound ``(sqrt(3)/2) * S /
 (2^B - 1)``), Sec. 8 (the centred code convention), and Rossignac & Borrel's vertex
-clustering (the paper's reference [20]). The kernels are in ``rust/quantize.rs``.
+clustering (the paper's reference [20]). The kernels are in ``rust/quantize/``.
 """
 
 from __future__ import annotations
