@@ -885,7 +885,9 @@ class _Dask:
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=None,
-                silence_logs=logging.ERROR,
+                # A worker that outlives the scheduler by a heartbeat at shutdown logs an
+                # ERROR with a traceback; a task's own failure reaches its report row.
+                silence_logs=logging.CRITICAL,
             )
             self._client = Client(self._cluster)
             self.threads = max(1, _cores() // count)
