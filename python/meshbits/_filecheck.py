@@ -11,6 +11,7 @@ and names the disagreement.
 
 from __future__ import annotations
 
+import json
 import re
 from typing import Any
 
@@ -283,6 +284,18 @@ def _glb(buffer: Any, size: int) -> None:
         )
     if head[16:20] != b"JSON":
         raise MeshFileError("the GLB's first chunk is not its JSON: damaged")
+    (json_length,) = np.frombuffer(head, "<u4", 1, 12)
+    try:
+        document = json.loads(bytes(buffer[20 : 20 + min(int(json_length), size - 20)]))
+        required = document.get("extensionsRequired", []) if isinstance(document, dict) else []
+    except (ValueError, UnicodeDecodeError):
+        required = []  # the GLB reader says what is wrong with the JSON
+    for extension in ("EXT_meshopt_compression", "KHR_meshopt_compression"):
+        if isinstance(required, list) and extension in required:
+            raise MeshFileError(
+                f"the GLB is compressed with {extension}, which this reader does not "
+                "decode: decompress it first (gltfpack -i in.glb -o out.glb -noq)"
+            )
     offset, number = 12, 0
     while offset + 8 <= min(length, size):
         (chunk,) = np.frombuffer(buffer, "<u4", 1, offset)

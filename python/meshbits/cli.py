@@ -219,7 +219,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     args.size, args.error, args.vertices, args.relative = None, DEMO_RELATIVE_ERROR, None, True
     args.lods, args.alpha, args.connectivity_bits = None, None, None
     args.max_iterations, args.samples, args.seed = 6, None, 0
-    args.estimator, args.quiet, args.certify = "circumsphere", args.json, False
+    args.estimator, args.quiet, args.certify = "circumsphere", args.json, True
     args.method, args.codec, args.normal_tolerance = "auto", "draco", 1.0
     if not args.json:
         print(
@@ -317,9 +317,14 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=_count(0), default=0, help="seed of the samples (default 0)")
     p.add_argument("--estimator", choices=ESTIMATORS, default="circumsphere", help="estimator of K")
     p.add_argument(
-        "--certify",
-        action="store_true",
-        help="an error budget is met only when a certified upper bound of the error is",
+        "--no-certify",
+        dest="certify",
+        action="store_false",
+        help="judge an error budget by the sampled error (a lower bound, faster) instead of "
+        "a certified upper bound (the default: 'met' means the true error is within it)",
+    )
+    p.add_argument(
+        "--certify", dest="certify", action="store_true", default=True, help=argparse.SUPPRESS
     )
     p.add_argument("--quiet", action="store_true", help="no per-iteration lines on stderr")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -445,6 +450,20 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         raise UserError("a scene takes --error or --size, not --vertices")
     if args.lods:
         raise UserError("--lods applies to single meshes (.drc and .ply outputs)")
+    unused = {
+        "--samples": args.samples is not None,
+        "--method": args.method != "auto",
+        "--alpha": args.alpha is not None,
+        "--connectivity-bits": args.connectivity_bits is not None,
+        "--max-iterations": args.max_iterations != 6,
+        "--estimator": args.estimator != "circumsphere",
+    }
+    given = [name for name, used in unused.items() if used]
+    if given:
+        raise UserError(
+            f"{', '.join(given)} apply to single meshes (.drc and .ply outputs); a scene's "
+            "primitives are searched with meshoptimizer and their own sample counts"
+        )
     _output(args.output)
     _input(args.mesh)
 
@@ -461,6 +480,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         normal_tolerance=args.normal_tolerance,
         output=args.output,
         seed=args.seed,
+        certify=args.certify,
         progress=report,
     )
     payload = {
@@ -1234,7 +1254,7 @@ def _write_colors(
         "path": str(written.path),
         "colorbar_path": str(written.colorbar_path),
         "vmax": written.vmax,
-        "vertex_distance_max": float(distances.max()) if len(distances) else 0.0,
+        "vertex_distance_max": float(distances[np.unique(a[1])].max()),
     }
 
 

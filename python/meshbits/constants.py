@@ -78,3 +78,8 @@ MIN_BITS, MAX_BITS = 1, 32
 #: most 30 bits; KHR_mesh_quantization stores positions as (unsigned) shorts at most; the
 #: quantized PLY stores float32, whose 24-bit significand cannot hold a finer grid.
 FORMAT_MAX_BITS = {"draco": 30, "glb": 16, "ply": 24}
+
+#: With ``certify`` (the default of ``compress`` and ``compress_scene``), each candidate's
+#: certified upper bound on the Hausdorff distance is refined until it is within this
+#: fraction of the error budget of the sampled distance.
+CERTIFY_TOLERANCE = 0.05

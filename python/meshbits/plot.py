@@ -331,7 +331,8 @@ def error_map(
     cmap : str
         A matplotlib colour map name.
     vmax : float, optional
-        Distance shown with the top colour (default: the largest distance).
+        Distance shown with the top colour (default: the largest distance of a vertex
+        some face uses).
     label : str
         Colour-bar label.
 
@@ -349,6 +350,8 @@ def error_map(
         )
     if np.any(d < 0):
         raise MeshbitsError("distances must be non-negative")
+    if vmax is None:  # the surface's largest: an unreferenced vertex is not on it
+        vmax = float(d[np.unique(faces)].max())
     colors, vmin, vmax_used = vertex_colors(d, cmap=cmap, vmin=0.0, vmax=vmax)
     out = trimesh.Trimesh(vertices, faces, vertex_colors=colors, process=False)
     path = write_atomic(Path(path), out.export(file_type="ply"))

@@ -147,6 +147,14 @@ def precision_bits(vertices: Any, grid_size: float | None = None) -> int:
     return max(MIN_BITS, math.ceil(math.log2(ratio + 1.0)))
 
 
+def _is_table(value: Any) -> bool:
+    """Whether ``value`` reads as a 2-D array (the faces of a pair, not a point)."""
+    try:
+        return np.ndim(value) == 2
+    except ValueError:  # ragged
+        return False
+
+
 def _grid_fields(raw: dict[str, Any]) -> dict[str, Any]:
     return {
         "origin": np.asarray(raw.pop("origin")),
@@ -324,6 +332,8 @@ def quantize(
     box_min, box_max = _as_box(box)
     if hasattr(points, "vertices"):
         points = points.vertices
+    elif isinstance(points, tuple) and len(points) == 2 and _is_table(points[1]):
+        points = points[0]  # a (vertices, faces) pair: every vertex, as for a mesh
     array = as_points(points, "points", allow_empty=box_min is not None)
     raw: dict[str, Any] = dict(
         _core.quantize(array, bits, grid, box_min, box_max, convention == "centered")

@@ -28,7 +28,7 @@ import numpy as np
 
 from . import _core
 from .complexity import shape_complexity
-from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, FORMAT_MAX_BITS
+from .constants import CERTIFY_TOLERANCE, DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, FORMAT_MAX_BITS
 from .errors import MeshbitsError, MeshFileError
 from .gltf import (
     COMPONENT_TYPES,
@@ -598,7 +598,7 @@ class _Job:
     reference: Reference | None = None
     k: float = 0.0
     grid_size: float = 0.0
-    results: dict[float, tuple[Any, Encoding, Any]] = field(default_factory=dict)
+    results: dict[tuple[float, bool], tuple[Any, Encoding, Any]] = field(default_factory=dict)
 
 
 def _attribute_weights(names: list[str], budget: float, bits: AttributeBits) -> dict[str, float]:
@@ -617,10 +617,12 @@ def _attribute_weights(names: list[str], budget: float, bits: AttributeBits) -> 
     return weights
 
 
-def _search_primitive(job: _Job, budget: float, codec: str, seed: int) -> tuple[Any, Encoding, Any]:
+def _search_primitive(
+    job: _Job, budget: float, codec: str, seed: int, certify: bool
+) -> tuple[Any, Encoding, Any]:
     """The fewest bytes of one primitive within a local error budget (cached)."""
-    if budget in job.results:
-        return job.results[budget]
+    if (budget, certify) in job.results:
+        return job.results[(budget, certify)]
     data = job.data
     original = (data.positions, data.faces)
     if job.reference is None:
@@ -670,11 +672,13 @@ def _search_primitive(job: _Job, budget: float, codec: str, seed: int) -> tuple[
         samples=job.reference.samples,
         attributes=attributes,
         codec=encode,
+        certify=certify,
+        tolerance=CERTIFY_TOLERANCE * budget if certify else None,
     )
     run_search(search, SCENE_PASSES)
     chosen = search.best() or search.closest()
     outcome = (chosen, search.encoded(chosen), search.levels[chosen.level])
-    job.results[budget] = outcome
+    job.results[(budget, certify)] = outcome
     return outcome
 
 
@@ -688,6 +692,7 @@ def compress_scene(
     normal_tolerance: float = NORMAL_TOLERANCE_DEGREES,
     output: str | Path | None = None,
     seed: int = 0,
+    certify: bool = True,
     progress: ProgressCallback | None = None,
 ) -> SceneResult:
     """Compress every triangle primitive of a scene to one world-space budget and write
@@ -714,6 +719,9 @@ def compress_scene(
         named after it). None: nothing written.
     seed
         Seed of every measurement.
+    certify
+        Judge each primitive's budget by a certified upper bound of its error (default),
+        not by the sampled distance, which only bounds it from below.
     progress
         Called with a :class:`meshbits.Progress` per primitive searched (``str(event)``
         is its line).
@@ -736,6 +744,12 @@ def compress_scene(
     if output is not None and Path(output).suffix.lower() not in (".glb", ".gltf"):
         raise MeshbitsError(f"a scene is written as .glb or .gltf, not {Path(output).suffix}")
     input_bytes = 0
+    if not isinstance(source, (str, Path, Document)):
+        raise TypeError(
+            f"compress_scene takes a file path or a meshbits.gltf.Document, got "
+            f"{type(source).__name__}: for a mesh in memory use meshbits.compress, or export "
+            "the scene to a .glb first"
+        )
     if isinstance(source, Document):
         document = source
     else:
@@ -770,7 +784,7 @@ def compress_scene(
     def run_at(world_error: float) -> list[tuple[Any, Encoding, Any]]:
         outcomes = []
         for job in jobs:
-            outcome = _search_primitive(job, world_error / job.scale, codec, seed)
+            outcome = _search_primitive(job, world_error / job.scale, codec, seed, certify)
             outcomes.append(outcome)
             say(
                 f"mesh {job.data.mesh} primitive {job.data.index}: B = {outcome[0].bits}, "
