@@ -43,7 +43,7 @@ from .hausdorff import Reference, default_samples
 from .io import write_atomic
 from .quantize import precision_bits
 from .results import Progress, ProgressCallback
-from .search import Attributes, Search, run_search
+from .search import Attributes, Search, certify_answer, run_search
 
 __all__ = [
     "CODECS",
@@ -672,10 +672,10 @@ def _search_primitive(
         samples=job.reference.samples,
         attributes=attributes,
         codec=encode,
-        certify=certify,
-        tolerance=CERTIFY_TOLERANCE * budget if certify else None,
     )
     run_search(search, SCENE_PASSES)
+    if certify:
+        certify_answer(search, CERTIFY_TOLERANCE * budget, 2)
     chosen = search.best() or search.closest()
     outcome = (chosen, search.encoded(chosen), search.levels[chosen.level])
     job.results[(budget, certify)] = outcome
