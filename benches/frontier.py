@@ -36,7 +36,10 @@ import numpy as np
 import trimesh
 
 import meshbits
+import meshbits.compress as compress_module
+from meshbits.constants import CERTIFY_TOLERANCE
 from meshbits.encode import decode_draco, encode_draco
+from meshbits.hausdorff import default_samples
 from meshbits.quantize import cube_grid
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -95,6 +98,7 @@ class Oracle:
         self.name, self.mesh = name, mesh
         self.cache = OUT / f"{name}.json"
         self.levels: dict[tuple[str, int], tuple[np.ndarray, np.ndarray]] = {}
+        self.reference: meshbits.Reference | None = None
         if self.cache.exists() and not fresh:
             data = json.loads(self.cache.read_text())
         else:
@@ -158,18 +162,51 @@ class Oracle:
                 ).mesh
         return self.levels[key]
 
+    def _decoded(self, cell: dict) -> tuple[np.ndarray, np.ndarray]:
+        level = self._level(cell["simplifier"], cell["target"])
+        lo, hi = self.mesh[0].min(axis=0), self.mesh[0].max(axis=0)
+        origin, side = cube_grid(
+            np.minimum(lo, level[0].min(axis=0)), np.maximum(hi, level[0].max(axis=0))
+        )
+        encoded = encode_draco(level, cell["bits"], origin=origin, grid_size=side)
+        return decode_draco(encoded.data)
+
     def independent(self, cell: dict) -> float:
         """The cell's Open3D error / S, computed once."""
         if "open3d" not in cell:
-            level = self._level(cell["simplifier"], cell["target"])
-            lo, hi = self.mesh[0].min(axis=0), self.mesh[0].max(axis=0)
-            origin, side = cube_grid(
-                np.minimum(lo, level[0].min(axis=0)), np.maximum(hi, level[0].max(axis=0))
-            )
-            encoded = encode_draco(level, cell["bits"], origin=origin, grid_size=side)
-            cell["open3d"] = open3d_error(self.mesh, decode_draco(encoded.data)) / self.grid_size
+            cell["open3d"] = open3d_error(self.mesh, self._decoded(cell)) / self.grid_size
             self._save()
         return cell["open3d"]
+
+    def certified(self, cell: dict, budget: float) -> float:
+        """A certified upper bound on the cell's error / S, as compress certifies its
+        answers (meshbits, its samples, refined until within the budget or within
+        CERTIFY_TOLERANCE of it), computed once per budget."""
+        bounds = cell.setdefault("certified", {})
+        key = str(budget)
+        if key not in bounds:
+            if self.reference is None:
+                count = max(default_samples(len(self.mesh[1])), compress_module.MIN_SAMPLES)
+                self.reference = meshbits.Reference(self.mesh, samples=count, seed=0)
+            absolute = budget * self.grid_size
+            h = self.reference.hausdorff(
+                self._decoded(cell),
+                bounds=True,
+                tolerance=CERTIFY_TOLERANCE * absolute,
+                threshold=absolute,
+            )
+            bounds[key] = float(h.upper) / self.grid_size
+            self._save()
+        return bounds[key]
+
+    def best_for_error_certified(self, budget: float) -> dict | None:
+        """The smallest cell certified within the budget (and confirmed by Open3D): the
+        oracle on compress's own terms, which certifies what it returns."""
+        for cell in sorted(self.cells, key=lambda c: c["bytes"]):
+            if cell["error"] <= budget and self.certified(cell, budget) <= budget:
+                if self.independent(cell) <= budget:
+                    return cell
+        return None
 
     def best_for_error(self, budget: float) -> dict | None:
         """The smallest cell that Open3D finds within the budget."""
@@ -240,6 +277,11 @@ def evaluate(name: str, mesh: tuple, oracle: Oracle) -> list[dict]:
                 row["confirmed"] = error <= budget
                 row["oracle_bytes"] = best["bytes"] if best else None
                 row["excess"] = result.size_bytes / best["bytes"] - 1 if best else None
+                certified = oracle.best_for_error_certified(budget)
+                row["oracle_certified_bytes"] = certified["bytes"] if certified else None
+                row["excess_certified"] = (
+                    result.size_bytes / certified["bytes"] - 1 if certified else None
+                )
                 for bits in (11, 14):
                     full = full_mesh_draco(oracle, bits)
                     meets = full["open3d"] <= budget
@@ -310,23 +352,34 @@ def figure(name: str, oracle: Oracle, rows: list[dict]) -> Path:
 
 
 def summary(rows: list[dict]) -> None:
-    print("\n| mesh | budget | compress (B, V) | bytes | error / S | oracle | excess | passes |")
-    print("|---|---|---|---:|---:|---:|---:|---:|")
+    print(
+        "\n| mesh | budget | compress (B, V) | bytes | error / S | oracle | excess "
+        "| certified oracle | excess | passes | s |"
+    )
+    print("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         unit = "S" if r["kind"] == "error" else "kB"
         oracle_value = (
             r.get("oracle_bytes") if r["kind"] == "error" else f"{r.get('oracle_error'):.3g}"
         )
+        certified = r.get("oracle_certified_bytes")
         print(
             f"| {r['mesh']} | {r['budget']} {unit} | {r['bits']}, {r['vertices']} | "
             f"{r['bytes']} | {r['error']:.3g} | {oracle_value} | {_pct(r['excess'])} | "
-            f"{r['passes']} |"
+            f"{'-' if certified is None else certified} | {_pct(r.get('excess_certified'))} | "
+            f"{r['passes']} | {r['seconds']:.1f} |"
         )
     excess = [r["excess"] for r in rows if r["excess"] is not None]
     print(
         f"\nexcess over the oracle: median {_pct(statistics.median(excess))}, "
         f"worst {_pct(max(excess))} ({len(excess)} runs)"
     )
+    certified = [r["excess_certified"] for r in rows if r.get("excess_certified") is not None]
+    if certified:
+        print(
+            f"excess over the certified oracle (error budgets): median "
+            f"{_pct(statistics.median(certified))}, worst {_pct(max(certified))}"
+        )
     for kind in ("error", "size"):
         part = [r["excess"] for r in rows if r["kind"] == kind and r["excess"] is not None]
         if part:

@@ -37,6 +37,8 @@
 //! once `R ≤ τ` a piece settles. A midpoint only has to show
 //! `d ≤ t = min(lower, lower + τ - R_child)`: its search stops as soon as it finds a
 //! triangle closer than `t` and records `t` (a valid upper bound), otherwise it is exact.
+//! With a threshold `θ` (is `h(A, B) <= θ`?), the settling level is `max(lower + τ, θ)`,
+//! and the refinement stops as soon as `lower > θ`: the answer is then known.
 //! A level is evaluated against the `lower` of its start, so the result does not depend
 //! on the thread count. Distances carry f64 rounding (relative ~1e-15): every upper bound
 //! is raised by `2⁻⁴⁰ (h_B + bound)` (`h_B` the target's half extent) to cover it, so
@@ -76,6 +78,10 @@ pub struct Options {
     pub bounds: bool,
     /// Refine until `upper - lower <= tolerance` (length); implies `bounds`.
     pub tolerance: Option<f64>,
+    /// With a tolerance, the question is only whether `h(A, B) <= threshold` (length): a
+    /// piece also settles once its bound is `<= threshold`, and the refinement stops once
+    /// the lower bound exceeds it.
+    pub threshold: Option<f64>,
     /// Largest number of extra point queries the refinement may spend.
     pub refine_budget: usize,
     /// Return every sample with its distance, and the per-vertex distances.
@@ -103,8 +109,9 @@ pub struct Bounds {
     pub refined_points: usize,
     /// Triangles split during refinement.
     pub refined_cells: usize,
-    /// `Some(true)` when `upper - lower <= tolerance` was reached, `Some(false)` when the
-    /// budget ran out first, `None` without a tolerance.
+    /// `Some(true)` when `upper - lower <= tolerance` was reached or, with a threshold,
+    /// the bounds decided it (`upper <= threshold`, or `lower > threshold`); `Some(false)`
+    /// when the budget ran out first; `None` without a tolerance.
     pub converged: Option<bool>,
 }
 
@@ -264,9 +271,28 @@ struct Cell {
 }
 
 impl Cell {
-    /// `min(Lipschitz bound, convex bound)`; see the module docs.
-    fn new(tree: &TriangleTree, v: [DVec3; 3], d: [f64; 3], slot: [u32; 3], r: f64) -> Cell {
+    /// `min(Lipschitz bound, convex bound)`; see the module docs. The convex bound is
+    /// skipped when the Lipschitz one is already within `settle` (length): the cell
+    /// settles either way.
+    fn new(
+        tree: &TriangleTree,
+        v: [DVec3; 3],
+        d: [f64; 3],
+        slot: [u32; 3],
+        r: f64,
+        settle: f64,
+    ) -> Cell {
         let lipschitz = d[0].max(d[1]).max(d[2]) + r;
+        let margin = |upper: f64| upper + ROUNDING_MARGIN * (tree.half_extent() + upper);
+        if margin(lipschitz) <= settle {
+            return Cell {
+                v,
+                d,
+                slot,
+                r,
+                upper: margin(lipschitz),
+            };
+        }
         let mut convex = f64::INFINITY;
         for (k, &s) in slot.iter().enumerate() {
             if slot[..k].contains(&s) {
@@ -282,7 +308,7 @@ impl Cell {
             d,
             slot,
             r,
-            upper: upper + ROUNDING_MARGIN * (tree.half_extent() + upper),
+            upper: margin(upper),
         }
     }
 }
@@ -300,16 +326,28 @@ struct Probe {
     exact: bool,
 }
 
-/// Splits a cell at its edge midpoints, evaluating each with early exit below `t`.
+/// What one work unit of a refinement level leaves: the children still above the settling
+/// level, the largest bound among those that settled (length), and the largest exact
+/// distance among its midpoints with the point.
+struct LevelPart {
+    unsettled: Vec<Cell>,
+    settled: f64,
+    best: Best,
+    point: DVec3,
+}
+
+/// Splits a cell at its edge midpoints, evaluating each with early exit below
+/// `t = min(lower, limit - r/2)`: a child whose corners are within `t` has a Lipschitz
+/// bound within `limit`, the level at which a piece settles.
 fn split(
     tree: &TriangleTree,
     cell: &Cell,
     lower: f64,
-    tol: f64,
+    limit: f64,
     stack: &mut SearchStack,
 ) -> ([Cell; 4], [Probe; 3]) {
     let r = cell.r * 0.5;
-    let t = lower.min(lower + tol - r);
+    let t = lower.min(limit - r);
     let stop = if t > 0.0 { t * t } else { 0.0 };
     let [a, b, c] = cell.v;
     let mut hint = cell.slot[0];
@@ -334,7 +372,7 @@ fn split(
     );
     let [da, db, dc] = cell.d;
     let [sa, sb, sc] = cell.slot;
-    let child = |v, d, slot| Cell::new(tree, v, d, slot, r);
+    let child = |v, d, slot| Cell::new(tree, v, d, slot, r, limit);
     let cells = [
         child(
             [a, m0.point, m2.point],
@@ -473,27 +511,35 @@ pub fn directed_from_samples(
         for (k, &v) in samples.vertex_ids.iter().enumerate() {
             slot_of[v as usize] = vertex_slots[k];
         }
-        let level0 = |f: &[u32; 3]| {
+        let level0 = |f: &[u32; 3], settle: f64| {
             let v = local_corners(vertices, *f, centre);
             let (d, slot) = (f.map(|i| vd[i as usize]), f.map(|i| slot_of[i as usize]));
-            Cell::new(tree, v, d, slot, covering_radius(v[0], v[1], v[2]))
+            Cell::new(tree, v, d, slot, covering_radius(v[0], v[1], v[2]), settle)
         };
         let mut lower = best.d2.sqrt();
+        let settle_at =
+            |lower: f64, tol: f64| opts.threshold.map_or(lower + tol, |t| t.max(lower + tol));
         let (mut refined_points, mut refined_cells, mut converged) = (0, 0, None);
         let mut settled = 0.0_f64;
         if let Some(tol) = opts.tolerance {
-            let mut active: Vec<Cell> = faces.par_iter().map(level0).collect();
+            let start = settle_at(lower, tol);
+            let mut active: Vec<Cell> = faces.par_iter().map(|f| level0(f, start)).collect();
             let mut next_index = points.len();
             loop {
-                let limit = lower + tol;
+                let limit = settle_at(lower, tol);
                 settled = active
                     .par_iter()
                     .map(|c| c.upper)
                     .filter(|&u| u <= limit)
                     .reduce(|| settled, f64::max);
                 active = active.into_par_iter().filter(|c| c.upper > limit).collect();
-                if active.is_empty() {
+                let decided = opts.threshold.is_some_and(|t| lower > t);
+                if active.is_empty() || decided {
                     converged = Some(true);
+                    settled = active
+                        .par_iter()
+                        .map(|c| c.upper)
+                        .reduce(|| settled, f64::max);
                     break;
                 }
                 if refined_points + 3 * active.len() > opts.refine_budget {
@@ -504,38 +550,61 @@ pub fn directed_from_samples(
                         .reduce(|| settled, f64::max);
                     break;
                 }
-                let level: Vec<([Cell; 4], [Probe; 3])> = active
+                // Split every active cell; children that settle leave at once (only their
+                // bound is kept), the others form the next level.
+                let parts: Vec<LevelPart> = active
                     .par_chunks(CELL_CHUNK)
-                    .flat_map_iter(|cells| {
+                    .enumerate()
+                    .map(|(chunk, cells)| {
                         let mut stack = tree.stack();
-                        cells
-                            .iter()
-                            .map(|c| split(tree, c, lower, tol, &mut stack))
-                            .collect::<Vec<_>>()
+                        let mut part = LevelPart {
+                            unsettled: Vec::new(),
+                            settled: f64::NEG_INFINITY,
+                            best: Best::NONE,
+                            point: DVec3::ZERO,
+                        };
+                        let first = next_index + 3 * chunk * CELL_CHUNK;
+                        for (k, c) in cells.iter().enumerate() {
+                            let (children, probes) = split(tree, c, lower, limit, &mut stack);
+                            for child in children {
+                                if child.upper <= limit {
+                                    part.settled = part.settled.max(child.upper);
+                                } else {
+                                    part.unsettled.push(child);
+                                }
+                            }
+                            for (j, p) in probes.iter().enumerate() {
+                                let index = first + 3 * k + j;
+                                let candidate = Best { d2: p.d2, index };
+                                if p.exact && part.best.merge(candidate) == candidate {
+                                    part.best = candidate;
+                                    part.point = p.point;
+                                }
+                            }
+                        }
+                        part
                     })
                     .collect();
                 refined_cells += active.len();
                 refined_points += 3 * active.len();
-                // New exact maxima, in a fixed order (the first strictly larger one wins).
-                for (_, probes) in &level {
-                    for p in probes {
-                        if p.exact && p.d2 > best.d2 {
-                            best = Best {
-                                d2: p.d2,
-                                index: next_index,
-                            };
-                            argmax_point = p.point;
-                        }
-                    }
-                }
                 next_index += 3 * active.len();
+                let mut unsettled =
+                    Vec::with_capacity(parts.iter().map(|p| p.unsettled.len()).sum());
+                for part in parts {
+                    settled = settled.max(part.settled);
+                    if best.merge(part.best) != best {
+                        best = part.best;
+                        argmax_point = part.point;
+                    }
+                    unsettled.extend(part.unsettled);
+                }
                 lower = best.d2.sqrt();
-                active = level.into_iter().flat_map(|(cells, _)| cells).collect();
+                active = unsettled;
             }
         } else {
             settled = faces
                 .par_iter()
-                .map(|f| level0(f).upper)
+                .map(|f| level0(f, f64::NEG_INFINITY).upper)
                 .reduce(|| 0.0, f64::max);
         }
         bounds = Some(Bounds {
@@ -588,6 +657,7 @@ mod tests {
             statistics: true,
             bounds: true,
             tolerance: None,
+            threshold: None,
             refine_budget: 1_000_000,
             return_samples: false,
         }
@@ -681,6 +751,50 @@ mod tests {
             truth,
             b.upper
         );
+    }
+
+    #[test]
+    fn a_threshold_decides_with_less_refinement() {
+        // The bump of `bump_refines_to_the_tolerance`: h(flat, bump) is the distance of the
+        // flat centre to the cone, about 0.14.
+        let (vb, fb) = square(2, 0.0);
+        let (mut va, fa) = square(2, 0.0);
+        va[4][2] = 0.2;
+        let ta = TriangleTree::build(&va, &fa).unwrap();
+        let base = Options {
+            area_samples: 50,
+            statistics: false,
+            tolerance: Some(1e-6),
+            ..options()
+        };
+        let tight = directed(&vb, &fb, &ta, &base).unwrap();
+        let truth = tight.max;
+        for threshold in [truth * 1.2, truth * 0.8] {
+            let r = directed(
+                &vb,
+                &fb,
+                &ta,
+                &Options {
+                    threshold: Some(threshold),
+                    ..base
+                },
+            )
+            .unwrap();
+            let b = r.bounds.unwrap();
+            assert_eq!(b.converged, Some(true));
+            assert!(r.max <= truth + 1e-12 && truth <= b.upper + 1e-12);
+            if threshold > truth {
+                assert!(b.upper <= threshold, "{} > {threshold}", b.upper);
+            } else {
+                assert!(r.max > threshold, "{} <= {threshold}", r.max);
+            }
+            assert!(
+                b.refined_points < tight.bounds.unwrap().refined_points,
+                "{} {}",
+                b.refined_points,
+                tight.bounds.unwrap().refined_points
+            );
+        }
     }
 
     #[test]

@@ -268,7 +268,7 @@ fn build_trees<'py>(
 /// One-sided sampled Hausdorff distance from a mesh to a tree; a dict of raw results
 /// (see `meshbits.hausdorff`).
 #[pyfunction]
-#[pyo3(signature = (vertices, faces, tree, samples, seed, statistics, bounds, tolerance, refine_budget, return_samples))]
+#[pyo3(signature = (vertices, faces, tree, samples, seed, statistics, bounds, tolerance, refine_budget, return_samples, threshold = None))]
 #[allow(clippy::too_many_arguments)]
 fn hausdorff_directed<'py>(
     py: Python<'py>,
@@ -282,6 +282,7 @@ fn hausdorff_directed<'py>(
     tolerance: Option<f64>,
     refine_budget: usize,
     return_samples: bool,
+    threshold: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
     let opts = Options {
@@ -290,6 +291,7 @@ fn hausdorff_directed<'py>(
         statistics,
         bounds,
         tolerance,
+        threshold,
         refine_budget,
         return_samples,
     };
@@ -396,7 +398,7 @@ fn sample_mesh<'py>(
 
 /// One-sided sampled Hausdorff distance from a sampled mesh to a tree, reusing its samples.
 #[pyfunction]
-#[pyo3(signature = (source, tree, statistics, bounds, tolerance, refine_budget, return_samples))]
+#[pyo3(signature = (source, tree, statistics, bounds, tolerance, refine_budget, return_samples, threshold = None))]
 #[allow(clippy::too_many_arguments)]
 fn hausdorff_from_samples<'py>(
     py: Python<'py>,
@@ -407,6 +409,7 @@ fn hausdorff_from_samples<'py>(
     tolerance: Option<f64>,
     refine_budget: usize,
     return_samples: bool,
+    threshold: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = Options {
         area_samples: 0,
@@ -414,6 +417,7 @@ fn hausdorff_from_samples<'py>(
         statistics,
         bounds,
         tolerance,
+        threshold,
         refine_budget,
         return_samples,
     };

@@ -176,6 +176,7 @@ def hausdorff_directed(
     tolerance: float | None,
     refine_budget: int,
     return_samples: bool,
+    threshold: float | None = None,
 ) -> _DirectedDict: ...
 def surface_samples(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32], samples: int, seed: int
@@ -236,6 +237,7 @@ def hausdorff_from_samples(
     tolerance: float | None,
     refine_budget: int,
     return_samples: bool,
+    threshold: float | None = None,
 ) -> _DirectedDict: ...
 def simplify(
     vertices: npt.NDArray[np.float64],

@@ -19,7 +19,7 @@ import numpy as np
 from .constants import FORMAT_MAX_BITS
 from .errors import MeshbitsError
 from .io import write_atomic
-from .mesh import MeshLike, as_mesh
+from .mesh import MeshLike, as_mesh, compact
 from .quantize import cube_grid, quantize
 from .results import ArrayResult
 
@@ -121,8 +121,7 @@ def _grid(vertices: np.ndarray, origin: Any, grid_size: Any) -> tuple[np.ndarray
 
 def _referenced(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mesh without its unreferenced vertices (faces reindexed)."""
-    used, inverse = np.unique(faces.ravel(), return_inverse=True)
-    return vertices[used], inverse.reshape(-1, 3)
+    return compact(vertices, faces)
 
 
 def _check_bits(bits: int, high: int) -> int:

@@ -124,6 +124,10 @@ class ClosestPoints:
         A ``trimesh.Trimesh``, a ``(vertices, faces)`` pair, or ``(n, 3)`` float vertices.
     faces
         ``(m, 3)`` integer vertex indices when ``mesh_or_vertices`` is an array.
+    check
+        Refuse a mesh whose triangles overlap beyond :data:`meshbits.mesh.MAX_BOX_OVERLAP`
+        (queries would take minutes); False skips the test, for a mesh derived from one
+        that passed it.
 
     Raises
     ------
@@ -140,9 +144,12 @@ class ClosestPoints:
     array([2.])
     """
 
-    def __init__(self, mesh_or_vertices: MeshLike, faces: Any = None) -> None:
+    def __init__(
+        self, mesh_or_vertices: MeshLike, faces: Any = None, *, check: bool = True
+    ) -> None:
         vertices, triangles = as_mesh(mesh_or_vertices, faces)
-        check_overlap(vertices, triangles)
+        if check:
+            check_overlap(vertices, triangles)
         self._tree = _core.build_tree(vertices, triangles)
 
     @property
@@ -579,19 +586,34 @@ class Reference:
         bounds: bool = False,
         tolerance: float | None = None,
         refine_budget: int = HAUSDORFF_REFINE_BUDGET,
+        check: bool = True,
+        threshold: float | None = None,
     ) -> Hausdorff:
         """Sampled Hausdorff distance from the reference (``a``) to ``candidate`` (``b``),
         as :func:`hausdorff` computes it; ``samples`` is the candidate's area sample count
-        (default: the reference's). Only the candidate's BVH and samples are built."""
+        (default: the reference's). Only the candidate's BVH and samples are built.
+        ``check=False`` skips :func:`check_overlap` of the candidate, for one made from
+        the reference by simplification or quantization (compress's search).
+
+        ``threshold`` (length, with a ``tolerance``) asks only whether the distance is
+        within it: the refinement also settles a piece whose bound is within
+        ``threshold`` and stops once the sampled maximum exceeds it, so ``upper`` may be
+        up to ``threshold`` rather than ``max + tolerance`` (``converged`` is then true
+        when the bounds decided the question)."""
         count = self.samples if samples is None else _check_count(samples, "samples")
         refine_budget = _check_count(refine_budget, "refine_budget")
+        if threshold is not None:
+            threshold = float(threshold)
+            if not (math.isfinite(threshold) and threshold >= 0):
+                raise MeshbitsError(f"threshold must be finite and >= 0, got {threshold}")
         tolerance = _check_tolerance(tolerance)
         bounds = bounds or tolerance is not None
         vertices, faces = as_mesh(candidate)
-        check_overlap(vertices, faces, "the candidate")
+        if check:
+            check_overlap(vertices, faces, "the candidate")
         tree = _core.build_tree(vertices, faces)
         a_to_b = _core.hausdorff_from_samples(
-            self._sampled, tree, statistics, bounds, tolerance, refine_budget, False
+            self._sampled, tree, statistics, bounds, tolerance, refine_budget, False, threshold
         )
         b_to_a = _core.hausdorff_directed(
             vertices,
@@ -604,10 +626,13 @@ class Reference:
             tolerance,
             refine_budget,
             False,
+            threshold,
         )
         return _symmetric(_directed(a_to_b), _directed(b_to_a), self.seed, statistics, tolerance)
 
-    def quick_distance(self, candidate: MeshLike, samples: int | None = None) -> float:
+    def quick_distance(
+        self, candidate: MeshLike, samples: int | None = None, *, check: bool = True
+    ) -> float:
         """A cheaper estimate of the sampled Hausdorff distance to ``candidate`` (length):
         the maximum only, over every referenced vertex of both meshes and ``samples``
         area samples of each (the reference's drawn once; default a tenth of the
@@ -622,7 +647,8 @@ class Reference:
                 _core.sample_mesh(self.vertices, self.faces, samples, self.seed),
             )
         vertices, faces = as_mesh(candidate)
-        check_overlap(vertices, faces, "the candidate")
+        if check:
+            check_overlap(vertices, faces, "the candidate")
         tree = _core.build_tree(vertices, faces)
         budget = HAUSDORFF_REFINE_BUDGET
         a_to_b = _core.hausdorff_from_samples(

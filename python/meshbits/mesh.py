@@ -16,7 +16,16 @@ import numpy.typing as npt
 from . import _core
 from .errors import MeshbitsError
 
-__all__ = ["MAX_BOX_OVERLAP", "MeshLike", "as_mesh", "as_points", "box_overlap", "check_overlap"]
+__all__ = [
+    "MAX_BOX_OVERLAP",
+    "MeshLike",
+    "as_mesh",
+    "as_points",
+    "box_overlap",
+    "check_overlap",
+    "compact",
+    "referenced",
+]
 
 
 class VerticesAndFaces(Protocol):
@@ -191,12 +200,33 @@ MAX_BOX_OVERLAP = 64.0
 _OVERLAP_CHUNK = 1 << 20
 
 
+def referenced(faces: np.ndarray, n_vertices: int | None = None) -> np.ndarray:
+    """The indices of the vertices some face uses, increasing (``np.unique(faces)``
+    by a flag per vertex: linear, not a sort). ``faces`` must be valid indices."""
+    flat = np.asarray(faces).ravel()
+    if n_vertices is None:
+        n_vertices = int(flat.max()) + 1 if flat.size else 0
+    used = np.zeros(n_vertices, dtype=bool)
+    used[flat] = True
+    return np.flatnonzero(used)
+
+
+def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh without its unreferenced vertices: ``vertices[used]`` and the faces
+    renumbered over them (int64), as ``np.unique(faces, return_inverse=True)`` gives."""
+    faces = np.asarray(faces)
+    used = referenced(faces, len(vertices))
+    renumber = np.empty(len(vertices), dtype=np.int64)
+    renumber[used] = np.arange(len(used), dtype=np.int64)
+    return vertices[used], renumber[faces.reshape(-1, 3)]
+
+
 def box_overlap(vertices: np.ndarray, faces: np.ndarray) -> float:
     """How many triangle bounding boxes a point of the mesh's bounding box lies in, on
     average: the sum of the triangles' box volumes over the mesh's box volume, every box
     widened by 1e-3 of the mesh's largest side so flat boxes count. A BVH query visits
     about this many triangles beyond the few near it (dimensionless)."""
-    used = np.unique(faces)
+    used = referenced(faces, len(vertices))
     low, high = vertices[used].min(axis=0), vertices[used].max(axis=0)
     pad = 1e-3 * float(np.max(high - low))
     if pad == 0:

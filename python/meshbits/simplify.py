@@ -29,7 +29,7 @@ import numpy as np
 
 from . import _core
 from .errors import MeshbitsError
-from .mesh import MeshLike, as_mesh
+from .mesh import MeshLike, as_mesh, compact, referenced
 from .results import ArrayResult
 
 __all__ = [
@@ -124,12 +124,11 @@ def check_untangled(face_count: int, used: int, what: str) -> None:
 
 def referenced_vertex_count(faces: np.ndarray) -> int:
     """Number of distinct vertices that some face uses."""
-    return int(np.unique(np.asarray(faces).ravel()).size)
+    return int(referenced(faces).size)
 
 
 def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    used, inverse = np.unique(faces.ravel(), return_inverse=True)
-    return vertices[used], inverse.reshape(-1, 3).astype(np.int64)
+    return compact(vertices, faces)
 
 
 def _check_target(name: str, value: Any, smallest: float) -> Any:
