@@ -36,7 +36,7 @@ import numpy as np
 import trimesh
 
 import meshbits
-import meshbits.compress as compress_module
+from meshbits.compress import MIN_SAMPLES
 from meshbits.constants import CERTIFY_TOLERANCE
 from meshbits.encode import decode_draco, encode_draco
 from meshbits.hausdorff import default_samples
@@ -186,7 +186,7 @@ class Oracle:
         key = str(budget)
         if key not in bounds:
             if self.reference is None:
-                count = max(default_samples(len(self.mesh[1])), compress_module.MIN_SAMPLES)
+                count = max(default_samples(len(self.mesh[1])), MIN_SAMPLES)
                 self.reference = meshbits.Reference(self.mesh, samples=count, seed=0)
             absolute = budget * self.grid_size
             h = self.reference.hausdorff(

@@ -861,6 +861,14 @@ def _parse_dask(address: str) -> int | None:
     return None
 
 
+#: Dask settings of a LocalCluster started by ``--dask local:N`` (see :class:`_Dask`).
+LOCAL_CLUSTER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.system-monitor.gil.enabled": False,
+    "distributed.scheduler.worker-saturation": float("inf"),
+}
+
+
 class _Dask:
     """Tasks on Dask distributed: a scheduler at an address, or a LocalCluster of worker
     processes started here (``local:N``). Workers read the inputs and write the outputs
@@ -880,15 +888,22 @@ class _Dask:
         self._cluster = None
         self._futures: list[Any] = []
         if count is not None:
-            self._cluster = LocalCluster(
-                n_workers=count,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                # A worker that outlives the scheduler by a heartbeat at shutdown logs an
-                # ERROR with a traceback; a task's own failure reaches its report row.
-                silence_logs=logging.CRITICAL,
-            )
+            import dask
+
+            # The tasks are seconds of native code: the workers' statistical profiler
+            # (a stack sample every 10 ms) and GIL monitor only cost CPU here, and with
+            # every task sent to a worker ahead (no root-task queuing) a worker never waits
+            # a scheduler round trip for its next one. Spawned workers inherit this.
+            with dask.config.set(LOCAL_CLUSTER_CONFIG):
+                self._cluster = LocalCluster(
+                    n_workers=count,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                    # A worker that outlives the scheduler by a heartbeat at shutdown logs
+                    # an ERROR with a traceback; a task's own failure reaches its report row.
+                    silence_logs=logging.CRITICAL,
+                )
             self._client = Client(self._cluster)
             self.threads = max(1, _cores() // count)
         else:
