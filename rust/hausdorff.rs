@@ -37,8 +37,9 @@
 //! once `R ≤ τ` a piece settles. A midpoint only has to show
 //! `d ≤ t = min(lower, lower + τ - R_child)`: its search stops as soon as it finds a
 //! triangle closer than `t` and records `t` (a valid upper bound), otherwise it is exact.
-//! With a threshold `θ` (is `h(A, B) <= θ`?), the settling level is `max(lower + τ, θ)`,
-//! and the refinement stops as soon as `lower > θ`: the answer is then known.
+//! With a threshold `θ` (is `h(A, B) <= θ`?), pieces settle at `θ` instead of
+//! `lower + τ`, and the refinement stops as soon as `lower > θ`: the answer is then known.
+//! When `h` is close below `θ` this refines deep; the query budget bounds it.
 //! A level is evaluated against the `lower` of its start, so the result does not depend
 //! on the thread count. Distances carry f64 rounding (relative ~1e-15): every upper bound
 //! is raised by `2⁻⁴⁰ (h_B + bound)` (`h_B` the target's half extent) to cover it, so
@@ -79,8 +80,8 @@ pub struct Options {
     /// Refine until `upper - lower <= tolerance` (length); implies `bounds`.
     pub tolerance: Option<f64>,
     /// With a tolerance, the question is only whether `h(A, B) <= threshold` (length): a
-    /// piece also settles once its bound is `<= threshold`, and the refinement stops once
-    /// the lower bound exceeds it.
+    /// piece settles once its bound is `<= threshold` (instead of `lower + tolerance`),
+    /// and the refinement stops once the lower bound exceeds it.
     pub threshold: Option<f64>,
     /// Largest number of extra point queries the refinement may spend.
     pub refine_budget: usize,
@@ -517,8 +518,7 @@ pub fn directed_from_samples(
             Cell::new(tree, v, d, slot, covering_radius(v[0], v[1], v[2]), settle)
         };
         let mut lower = best.d2.sqrt();
-        let settle_at =
-            |lower: f64, tol: f64| opts.threshold.map_or(lower + tol, |t| t.max(lower + tol));
+        let settle_at = |lower: f64, tol: f64| opts.threshold.unwrap_or(lower + tol);
         let (mut refined_points, mut refined_cells, mut converged) = (0, 0, None);
         let mut settled = 0.0_f64;
         if let Some(tol) = opts.tolerance {

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use crate::bvh::TriangleTree;
 use crate::codec;
 use crate::complexity::{self, Estimator, Tolerances};
-use crate::error::{MeshError, VertexIndex};
+use crate::error::{MeshError, VertexIndex, check_indices};
 use crate::hausdorff::{self, Options};
 use crate::pool;
 use crate::quantize::{Clustering, Duplicates, Grid, GridKind};
@@ -240,6 +240,20 @@ fn build_tree<'py>(
     let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
     let tree = run_detached(py, || TriangleTree::build(v, f))?;
     Ok(PyTriangleTree { tree })
+}
+
+/// [`crate::reduce::box_overlap`]: mean number of triangle boxes over a point of the box.
+#[pyfunction]
+fn box_overlap<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, u32>,
+) -> PyResult<f64> {
+    let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
+    run_detached(py, || {
+        check_indices(f, v.len())?;
+        Ok::<f64, MeshError>(crate::reduce::box_overlap(v, f))
+    })
 }
 
 /// Builds the BVHs of several meshes at once (their builds run concurrently: one build
@@ -866,6 +880,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTriangleTree>()?;
     m.add_function(wrap_pyfunction!(build_tree, m)?)?;
     m.add_function(wrap_pyfunction!(build_trees, m)?)?;
+    m.add_function(wrap_pyfunction!(box_overlap, m)?)?;
     m.add_function(wrap_pyfunction!(hausdorff_directed, m)?)?;
     m.add_function(wrap_pyfunction!(surface_samples, m)?)?;
     m.add_class::<PySampledMesh>()?;

@@ -82,9 +82,76 @@ pub fn referenced_bbox(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> ([f64; 3], 
     (lo.to_array(), hi.to_array())
 }
 
+/// How many triangle bounding boxes a point of the mesh's bounding box lies in, on average
+/// (dimensionless): `sum over faces of vol(box_f + pad) / vol(box + pad)`, every box
+/// widened by `pad = 1e-3` of the mesh's largest side so flat boxes count. A BVH query
+/// visits about this many triangles beyond the few near it. 0 for a mesh of one point.
+/// Indices must be in range (checked by the caller).
+#[must_use]
+pub fn box_overlap(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
+    if faces.is_empty() {
+        return 0.0;
+    }
+    let (lo, hi) = referenced_bbox(vertices, faces);
+    let extent = DVec3::from_array(hi) - DVec3::from_array(lo);
+    let pad = 1e-3 * extent.max_element();
+    if !(pad > 0.0) {
+        return 0.0;
+    }
+    let volumes: Vec<f64> = faces
+        .par_chunks(SUM_CHUNK)
+        .map(|chunk| {
+            chunk
+                .iter()
+                .map(|f| {
+                    let [a, b, c] = f.map(|i| DVec3::from_array(vertices[i as usize]));
+                    let side = a.max(b).max(c) - a.min(b).min(c) + DVec3::splat(pad);
+                    side.x * side.y * side.z
+                })
+                .sum::<f64>()
+        })
+        .collect();
+    let whole = extent + DVec3::splat(pad);
+    volumes.iter().sum::<f64>() / (whole.x * whole.y * whole.z)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn box_overlap_of_a_grid_and_of_a_fan() {
+        // A flat n x n grid: the boxes tile the square, flat boxes padded.
+        let n = 20u32;
+        let mut v = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                v.push([f64::from(i), f64::from(j), 0.0]);
+            }
+        }
+        let mut f = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let k = j * (n + 1) + i;
+                f.push([k, k + 1, k + n + 2]);
+                f.push([k, k + n + 2, k + n + 1]);
+            }
+        }
+        let pad = 1e-3 * f64::from(n);
+        let expected = 2.0 * f64::from(n * n) * (1.0 + pad).powi(2) * pad
+            / ((f64::from(n) + pad).powi(2) * pad);
+        assert!((box_overlap(&v, &f) - expected).abs() < 1e-12 * expected);
+        // Every triangle of a fan over a circle spans the whole box.
+        let m = 200;
+        let mut fan = vec![[0.0, 0.0, 0.0]];
+        for k in 0..m {
+            let t = std::f64::consts::TAU * f64::from(k) / f64::from(m);
+            fan.push([t.cos(), t.sin(), 0.5 * f64::from(k % 2)]);
+        }
+        let faces: Vec<[u32; 3]> = (1..m).map(|k| [0, k, k + 1]).collect();
+        assert!(box_overlap(&fan, &faces) > 5.0);
+        assert_eq!(box_overlap(&v, &[]), 0.0);
+    }
 
     #[test]
     fn bbox_centre_of_a_box_near_the_float64_limit_is_finite() {

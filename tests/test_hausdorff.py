@@ -593,3 +593,33 @@ def test_overlapping_triangles_are_refused_not_measured_for_minutes():
         meshbits.Reference(bunny).hausdorff(tangle)
     with pytest.raises(meshbits.MeshbitsError, match="overlap"):
         meshbits.compress(tangle, error=0.01, relative=True)
+
+
+def _box_overlap_numpy(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Plain numpy: the triangles' padded box volumes over the mesh's padded box volume."""
+    used = np.unique(faces)
+    low, high = vertices[used].min(axis=0), vertices[used].max(axis=0)
+    pad = 1e-3 * float(np.max(high - low))
+    if pad == 0:
+        return 0.0
+    corners = vertices[faces]
+    extent = corners.max(axis=1) - corners.min(axis=1) + pad
+    return float(np.prod(extent, axis=1).sum() / np.prod(high - low + pad))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n_vertices=st.integers(3, 60),
+    n_faces=st.integers(1, 300),
+    seed=st.integers(0, 2**32 - 1),
+    scale=st.floats(1e-6, 1e6),
+)
+def test_box_overlap_matches_numpy(n_vertices, n_faces, seed, scale):
+    from meshbits.mesh import box_overlap
+
+    rng = np.random.default_rng(seed)
+    vertices = scale * rng.normal(size=(n_vertices, 3))
+    faces = rng.integers(0, n_vertices, (n_faces, 3))
+    expected = _box_overlap_numpy(vertices, faces)
+    assert box_overlap(vertices, faces) == pytest.approx(expected, rel=1e-9, abs=1e-300)
+    assert box_overlap(vertices, faces.astype(np.uint32)) == box_overlap(vertices, faces)

@@ -596,10 +596,10 @@ class Reference:
         the reference by simplification or quantization (compress's search).
 
         ``threshold`` (length, with a ``tolerance``) asks only whether the distance is
-        within it: the refinement also settles a piece whose bound is within
-        ``threshold`` and stops once the sampled maximum exceeds it, so ``upper`` may be
-        up to ``threshold`` rather than ``max + tolerance`` (``converged`` is then true
-        when the bounds decided the question)."""
+        within it: the refinement settles a piece once its bound is within ``threshold``
+        (instead of ``max + tolerance``) and stops once the maximum found exceeds it, so
+        ``upper`` may be anywhere up to ``threshold`` (``converged`` is then true when
+        the bounds decided the question, false when ``refine_budget`` ran out first)."""
         count = self.samples if samples is None else _check_count(samples, "samples")
         refine_budget = _check_count(refine_budget, "refine_budget")
         if threshold is not None:

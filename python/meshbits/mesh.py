@@ -197,8 +197,6 @@ def as_mesh(
 #: faces: 10,000 queries took 140 s).
 MAX_BOX_OVERLAP = 64.0
 
-_OVERLAP_CHUNK = 1 << 20
-
 
 def referenced(faces: np.ndarray, n_vertices: int | None = None) -> np.ndarray:
     """The indices of the vertices some face uses, increasing (``np.unique(faces)``
@@ -225,18 +223,16 @@ def box_overlap(vertices: np.ndarray, faces: np.ndarray) -> float:
     """How many triangle bounding boxes a point of the mesh's bounding box lies in, on
     average: the sum of the triangles' box volumes over the mesh's box volume, every box
     widened by 1e-3 of the mesh's largest side so flat boxes count. A BVH query visits
-    about this many triangles beyond the few near it (dimensionless)."""
-    used = referenced(faces, len(vertices))
-    low, high = vertices[used].min(axis=0), vertices[used].max(axis=0)
-    pad = 1e-3 * float(np.max(high - low))
-    if pad == 0:
-        return 0.0
-    total = 0.0
-    for start in range(0, len(faces), _OVERLAP_CHUNK):
-        corners = vertices[faces[start : start + _OVERLAP_CHUNK]]
-        extent = corners.max(axis=1) - corners.min(axis=1) + pad
-        total += float(np.prod(extent, axis=1).sum())
-    return total / float(np.prod(high - low + pad))
+    about this many triangles beyond the few near it (dimensionless). One parallel pass
+    in the Rust core; ``faces`` must index ``vertices``."""
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(faces).reshape(-1, 3)
+    if faces.dtype != np.uint32:
+        converted = _core.faces_as_u32(faces.astype(np.int64, copy=False), len(vertices))
+        if converted is None:
+            raise MeshbitsError("faces index vertices out of range")
+        faces = converted
+    return float(_core.box_overlap(vertices, faces))
 
 
 def check_overlap(vertices: np.ndarray, faces: np.ndarray, name: str = "the mesh") -> None:
