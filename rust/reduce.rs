@@ -95,7 +95,7 @@ pub fn box_overlap(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
     let (lo, hi) = referenced_bbox(vertices, faces);
     let extent = DVec3::from_array(hi) - DVec3::from_array(lo);
     let pad = 1e-3 * extent.max_element();
-    if !(pad > 0.0) {
+    if pad.is_nan() || pad <= 0.0 {
         return 0.0;
     }
     let volumes: Vec<f64> = faces
