@@ -623,3 +623,23 @@ def test_box_overlap_matches_numpy(n_vertices, n_faces, seed, scale):
     expected = _box_overlap_numpy(vertices, faces)
     assert box_overlap(vertices, faces) == pytest.approx(expected, rel=1e-9, abs=1e-300)
     assert box_overlap(vertices, faces.astype(np.uint32)) == box_overlap(vertices, faces)
+
+
+def test_a_threshold_decides_the_certified_bound():
+    """``threshold`` settles pieces at the threshold and stops at a point beyond it: the
+    verdict agrees with the bound refined to a tight tolerance on either side."""
+    bunny = load("bunny.ply")
+    clustered = meshbits.cluster(bunny, bits=7)
+    reference = meshbits.Reference(bunny, samples=20_000)
+    tight = reference.hausdorff(clustered, samples=20_000, tolerance=1e-6)
+    assert tight.a_to_b.converged and tight.b_to_a.converged
+    above = 1.05 * tight.upper
+    decided = reference.hausdorff(clustered, samples=20_000, tolerance=1e-6, threshold=above)
+    assert decided.a_to_b.converged and decided.b_to_a.converged
+    assert tight.distance <= decided.upper <= above
+    below = 0.97 * tight.distance
+    decided = reference.hausdorff(clustered, samples=20_000, tolerance=1e-6, threshold=below)
+    assert decided.distance > below
+    assert decided.distance <= tight.upper
+    with pytest.raises(meshbits.MeshbitsError, match="threshold"):
+        reference.hausdorff(clustered, tolerance=1e-6, threshold=float("nan"))
