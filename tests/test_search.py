@@ -141,3 +141,24 @@ def test_passes_are_few_and_reported():
 def test_every_simplifier_meets_the_budget(method):
     result = meshbits.compress(SPOT, error=0.003, relative=True, method=method)
     assert result.met, result.message
+
+
+def test_a_level_is_never_measured_twice_at_the_same_bits():
+    """Suzanne rotated and scaled as in the batch benchmark (float32 like its PLY): the
+    simplifier gave the same 494-vertex level for every error target, each was taken for
+    a new level, and the certified passes measured it at B = 8 four times and missed the
+    budget that the original at B = 8 meets."""
+    vertices, faces = load("suzanne.ply")
+    rotation = np.array(
+        [
+            [0.05928085152660453, 0.7809070797859043, 0.6218278808340235],
+            [0.9587647252795404, -0.2179868053198296, 0.1823511838900493],
+            [0.27794960370888894, 0.5853767038811045, -0.7616286052607042],
+        ]
+    )
+    shift = np.array([-5.839992907881934, 3.0036587818032925, 5.2898146390798315])
+    moved = (1.6053746750260098 * vertices @ rotation.T + shift).astype(np.float32)
+    result = meshbits.compress((moved.astype(np.float64), faces), error=0.005, relative=True)
+    assert result.met, result.message
+    seen = [(it.bits, it.vertices, it.faces, it.measured_size_bits) for it in result.iterations]
+    assert len(seen) == len(set(seen)), seen

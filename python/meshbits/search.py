@@ -300,6 +300,8 @@ class Level:
         ``B -> measured error`` (length; the certified bound when certifying).
     quick : float or None
         :meth:`Reference.quick_distance` of the unquantized level (length).
+    aliases : list
+        Other simplifier parameters that gave this same mesh.
     """
 
     source: str
@@ -317,6 +319,7 @@ class Level:
     encodings: dict[int, Encoded] = field(default_factory=dict, repr=False)
     errors: dict[int, float] = field(default_factory=dict)
     quick: float | None = None
+    aliases: list[float] = field(default_factory=list)
 
     @property
     def vertex_count(self) -> int:
@@ -649,8 +652,9 @@ class Search:
                 level.method == method
             )
             wanted = tau if tau is not None else vertices
-            if same_method and wanted and abs(level.parameter / wanted - 1) < 0.03:
-                return index
+            if same_method and wanted:
+                if any(abs(p / wanted - 1) < 0.03 for p in [level.parameter, *level.aliases]):
+                    return index
         begin = time.perf_counter()
         if method is None:
             assert self.simplifier is not None and vertices is not None
@@ -678,7 +682,27 @@ class Search:
             )
         level.method = method
         self.seconds["simplify"] += time.perf_counter() - begin
+        same = self._same_level(level)
+        if same is not None:
+            # Another parameter, the same mesh (a small mesh simplifies to the same level
+            # over a range of targets): one level, so what was measured on it counts.
+            self.levels[same].aliases.append(level.parameter)
+            return same
         return self._add(level)
+
+    def _same_level(self, level: Level) -> int | None:
+        """The index of a built level of the same simplifier with the same mesh, if any."""
+        for index, other in enumerate(self.levels):
+            if (
+                other.source == level.source
+                and other.method == level.method
+                and other.vertices.shape == level.vertices.shape
+                and other.faces.shape == level.faces.shape
+                and np.array_equal(other.faces, level.faces)
+                and np.array_equal(other.vertices, level.vertices)
+            ):
+                return index
+        return None
 
     def _level_for(self, tessellation: float, aim_locks: float | None) -> int | None:
         """A level whose tessellation error is at most ``tessellation`` and as close to
