@@ -665,21 +665,7 @@ mod tests {
 
     /// A unit square in the plane `z`, split into `2 n²` triangles.
     fn square(n: u32, z: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-        let mut v = Vec::new();
-        for j in 0..=n {
-            for i in 0..=n {
-                v.push([i as f64 / n as f64, j as f64 / n as f64, z]);
-            }
-        }
-        let mut f = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let k = j * (n + 1) + i;
-                f.push([k, k + 1, k + n + 2]);
-                f.push([k, k + n + 2, k + n + 1]);
-            }
-        }
-        (v, f)
+        crate::test_meshes::grid(n, |_, _| z)
     }
 
     #[test]

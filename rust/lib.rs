@@ -27,6 +27,8 @@ pub mod quantize;
 pub mod reduce;
 pub mod sampling;
 pub mod simplify;
+#[cfg(test)]
+mod test_meshes;
 
 pub use error::MeshError;
 

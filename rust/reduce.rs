@@ -121,25 +121,12 @@ mod tests {
 
     #[test]
     fn box_overlap_of_a_grid_and_of_a_fan() {
-        // A flat n x n grid: the boxes tile the square, flat boxes padded.
+        // A flat n x n grid of the unit square: the boxes tile it, flat boxes padded.
         let n = 20u32;
-        let mut v = Vec::new();
-        for j in 0..=n {
-            for i in 0..=n {
-                v.push([f64::from(i), f64::from(j), 0.0]);
-            }
-        }
-        let mut f = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let k = j * (n + 1) + i;
-                f.push([k, k + 1, k + n + 2]);
-                f.push([k, k + n + 2, k + n + 1]);
-            }
-        }
-        let pad = 1e-3 * f64::from(n);
-        let expected = 2.0 * f64::from(n * n) * (1.0 + pad).powi(2) * pad
-            / ((f64::from(n) + pad).powi(2) * pad);
+        let (v, f) = crate::test_meshes::grid(n, |_, _| 0.0);
+        let (pad, cell) = (1e-3, 1.0 / f64::from(n));
+        let expected =
+            2.0 * f64::from(n * n) * (cell + pad).powi(2) * pad / ((1.0 + pad).powi(2) * pad);
         assert!((box_overlap(&v, &f) - expected).abs() < 1e-12 * expected);
         // Every triangle of a fan over a circle spans the whole box.
         let m = 200;

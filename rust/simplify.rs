@@ -322,22 +322,7 @@ mod tests {
 
     /// A `(n + 1) x (n + 1)` grid on the unit square, bent into `z = bend * x^2`.
     fn sheet(n: u32, bend: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-        let mut v = Vec::new();
-        for j in 0..=n {
-            for i in 0..=n {
-                let x = f64::from(i) / f64::from(n);
-                v.push([x, f64::from(j) / f64::from(n), bend * x * x]);
-            }
-        }
-        let mut f = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let k = j * (n + 1) + i;
-                f.push([k, k + 1, k + n + 2]);
-                f.push([k, k + n + 2, k + n + 1]);
-            }
-        }
-        (v, f)
+        crate::test_meshes::grid(n, |x, _| bend * x * x)
     }
 
     #[test]
