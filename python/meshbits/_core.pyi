@@ -108,6 +108,7 @@ __all__ = [
     "SampledMesh",
     "TriangleTree",
     "__version__",
+    "box_overlap",
     "build_tree",
     "build_trees",
     "cluster",
