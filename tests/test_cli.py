@@ -109,3 +109,45 @@ def test_a_mesh_spanning_1e308_gets_one_line_and_exit_2(tmp_path, capsys, comman
     code = main([command[0], str(path), *command[1:]])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "more than the supported 1e36" in err, err
+
+
+@pytest.mark.parametrize(
+    "content",
+    [
+        b"",
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+        b"property float y\nproperty float z\nelement face 10\n"
+        b"property list uchar int vertex_indices\nend_header\nabc",
+    ],
+)
+def test_a_broken_input_to_a_scene_output_names_the_file(tmp_path, capsys, content):
+    """The scene path (-o x.glb) checks a mesh file as load_mesh does, not trimesh's
+    terse "PLY is unexpected length!"."""
+    path = tmp_path / "broken.ply"
+    path.write_bytes(content)
+    assert main(["compress", str(path), "--error", "0.1", "-o", str(tmp_path / "x.glb")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"cannot read {path}" in err, err
+    (tmp_path / "noise.glb").write_bytes(b"\x17" * 64)
+    assert main(["compress", str(tmp_path / "noise.glb"), "--error", "0.1", "-o", "y.glb"]) == 2
+    assert "noise.glb" in capsys.readouterr().err
+
+
+def test_an_error_with_a_unit_on_a_file_without_units_says_how_it_is_read(tmp_path, capsys):
+    out = str(tmp_path / "x.drc")
+    assert main(["compress", str(DATA / "suzanne.ply"), "--error", "1cm", "-o", out]) in (0, 1)
+    assert "--error 1cm is read as 0.01 in the units of suzanne.ply" in capsys.readouterr().err
+    assert main(["compress", str(DATA / "suzanne.ply"), "--error", "0.01", "-o", out]) in (0, 1)
+    assert "note:" not in capsys.readouterr().err
+
+
+def test_a_certification_that_fails_is_said(capsys):
+    """spot at 0.002 S: its best sampled pass is over the budget by its certified bound;
+    the pass line was left saying it met."""
+    from meshbits.io import example_mesh_path
+
+    assert main(["compress", str(example_mesh_path()), "--error", "0.002", "--relative"]) == 0
+    err = capsys.readouterr().err
+    verdicts = [line for line in err.splitlines() if line.strip().startswith("certify:")]
+    assert any(line.endswith("not met after all") for line in verdicts), err
+    assert verdicts[-1].endswith("holds"), err

@@ -204,7 +204,7 @@ def _ply_sizes(buffer: Any, size: int, fmt: str, elements: list[_Element], start
             break
     if offset != size:
         expected = offset - start
-        size_text = f"{expected:,} bytes" if offset <= size else f"more than {available:,} bytes"
+        size_text = f"{expected:,} bytes" if offset <= size else f"at least {expected:,} bytes"
         raise MeshFileError(
             f"the PLY header declares {declared}: {size_text} of binary data (lists as long "
             f"as the first one), but {available:,} bytes follow it: "

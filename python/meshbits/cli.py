@@ -72,13 +72,32 @@ def _positive_number(text: str) -> float:
     return value
 
 
+class _Length(float):
+    """A length read from the command line, with the text it was given as."""
+
+    text: str = ""
+
+
 def _length(text: str) -> float:
     """An argparse type: a positive length, plain (the file's units) or with a unit
     (meters, glTF's unit: 1mm = 0.001)."""
     try:
-        return parse_length(text)
+        value = _Length(parse_length(text))
     except MeshbitsError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+    value.text = text.strip()
+    return value
+
+
+def _note_unit(args: argparse.Namespace, path: Path) -> None:
+    """Say how an error given with a unit is read from a file format without units."""
+    text = getattr(args.error, "text", "")
+    if text and text[-1:].isalpha() and path.suffix.lower() not in (".glb", ".gltf"):
+        print(
+            f"note: --error {text} is read as {float(args.error):g} in the units of "
+            f"{path.name}, taken as meters (glTF's unit): this format carries no unit",
+            file=sys.stderr,
+        )
 
 
 def _count(smallest: int) -> Callable[[str], int]:
@@ -363,6 +382,7 @@ def _run_compress(args: argparse.Namespace) -> int:
     _output(output)
     for path in [args.mesh, *(args.lods or [])]:
         _input(path)
+    _note_unit(args, args.mesh)
     mesh = load_mesh(args.mesh)
     lods = [load_mesh(path) for path in args.lods] if args.lods else None
 
@@ -466,6 +486,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         )
     _output(args.output)
     _input(args.mesh)
+    _note_unit(args, args.mesh)
 
     def report(event: Progress) -> None:
         if not args.quiet:

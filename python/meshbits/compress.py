@@ -235,7 +235,8 @@ def compress(
         The size model's alpha and T (Eq. 1) for the first plan; the search then predicts
         sizes from real encodings.
     max_iterations
-        Passes (candidates measured) at most.
+        Passes (candidates measured) at most; when certifying, as many more again after
+        an answer whose certified bound exceeds the budget.
     samples, seed
         Sampling of the Hausdorff measurement (:func:`meshbits.hausdorff`), seeded: both
         meshes get ``samples`` area samples (default: the original's
@@ -247,7 +248,7 @@ def compress(
         Estimator of K.
     certify
         Count an error budget as met only when a certified upper bound of the error
-        (refined to :data:`CERTIFY_TOLERANCE` times the budget) is within it (default;
+        (refined until it decides the budget) is within it (default;
         size and vertex budgets are judged by the sampled error). The search explores
         with sampled distances and certifies its answer, trying the next best when the
         bound exceeds the budget (:func:`meshbits.search.certify_answer`). ``False`` lets
@@ -334,7 +335,7 @@ def compress(
     )
     run_search(search, max_iterations, progress)
     if certify and constraint == "error":
-        certify_answer(search, CERTIFY_TOLERANCE * budget, max(2, max_iterations // 2), progress)
+        certify_answer(search, CERTIFY_TOLERANCE * budget, max(2, max_iterations), progress)
     seconds |= search.seconds
 
     best = search.best()
@@ -389,5 +390,5 @@ def _message(constraint: str, budget: float, met: bool, record: Iteration, passe
     closest = {"size": "smallest output", "error": "most accurate output"}[constraint]
     return (
         f"could not meet the {constraint} budget of {_describe(constraint, budget)} in "
-        f"{passes} passes; the {closest} reached: {outcome}"
+        f"{passes} pass{'' if passes == 1 else 'es'}; the {closest} reached: {outcome}"
     )

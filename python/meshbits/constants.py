@@ -79,7 +79,9 @@ MIN_BITS, MAX_BITS = 1, 32
 #: quantized PLY stores float32, whose 24-bit significand cannot hold a finer grid.
 FORMAT_MAX_BITS = {"draco": 30, "glb": 16, "ply": 24}
 
-#: With ``certify`` (the default of ``compress`` and ``compress_scene``), each candidate's
-#: certified upper bound on the Hausdorff distance is refined until it is within this
-#: fraction of the error budget of the sampled distance.
+#: With ``certify`` (the default of ``compress`` and ``compress_scene``), the refinement
+#: tolerance of a certified upper bound on the Hausdorff distance, as a fraction of the
+#: error budget; the bound of an answer is refined until it decides the budget (within it,
+#: or a point beyond it found), the tolerance then only sets where a bound with no
+#: threshold would stop.
 CERTIFY_TOLERANCE = 0.05

@@ -12,7 +12,6 @@ export, so UV seams stay split and textures keep their bytes.
 from __future__ import annotations
 
 import base64
-import io as _io
 import json
 import math
 import struct
@@ -463,6 +462,10 @@ def load_document(path: str | Path) -> Document:
         if suffix == ".gltf":
             return _from_gltf(json.loads(path.read_text(encoding="utf-8")), path.parent)
         return _from_trimesh(path)
+    except MeshFileError as err:
+        if str(err).startswith(("cannot read", str(path))):
+            raise
+        raise MeshFileError(f"cannot read {path}: {err}") from None
     except (MeshbitsError, FileNotFoundError):
         raise
     except Exception as err:
@@ -530,16 +533,14 @@ def _from_gltf(document: dict[str, Any], base: Path | None, binary: bytes = b"")
 
 
 def _from_trimesh(path: Path) -> Document:
-    import gzip
 
     import trimesh
 
-    suffixes = [s.lower() for s in path.suffixes]
-    if suffixes and suffixes[-1] == ".gz":
-        with gzip.open(path, "rb") as handle:
-            loaded = trimesh.load(
-                _io.BytesIO(handle.read()), file_type=suffixes[-2].lstrip("."), process=False
-            )
+    from .io import checked_mesh_file
+
+    source, file_type, compressed = checked_mesh_file(path)
+    if compressed:
+        loaded = trimesh.load(source, file_type=file_type, process=False)
     else:
         loaded = trimesh.load(path, process=False)
     scene = loaded if isinstance(loaded, trimesh.Scene) else trimesh.Scene(loaded)

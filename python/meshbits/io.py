@@ -56,27 +56,11 @@ def example_mesh_path() -> Path:
     return Path(str(resources.files("meshbits") / "data" / "spot.ply"))
 
 
-def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a triangle mesh file; return ``(vertices float64 (n, 3), faces int64 (m, 3))``.
-
-    Before trimesh parses a PLY, OFF, STL or GLB file, the counts its header declares are
-    compared with what the file holds (see ``meshbits._filecheck``): a 200-byte file that
-    declares 10**12 vertices is refused at once, without allocating for them. A ``.gz``
-    file may inflate to at most :data:`GZIP_MAX_RATIO` times its size (at least
-    :data:`GZIP_MIN_LIMIT` bytes): beyond that it is refused as a decompression bomb.
-
-    Raises
-    ------
-    FileNotFoundError
-        ``path`` does not exist.
-    MeshFileError
-        The file cannot be parsed, its header disagrees with its content, it holds no
-        triangles, or it holds NaN or infinite coordinates or vertex indices out of range
-        (a ``ValueError``). Nothing else, whatever the file holds.
-    """
-    import trimesh
-
-    path = Path(path)
+def checked_mesh_file(path: Path) -> tuple[Path | _io.BytesIO, str, bool]:
+    """Check a mesh file's structure before a parser reads it (see :func:`load_mesh`):
+    returns what to parse (the path, or the inflated bytes of a ``.gz``), the format and
+    whether it was compressed. Raises ``FileNotFoundError`` or :class:`MeshFileError`
+    naming the file."""
     if not path.is_file():
         raise FileNotFoundError(f"no such mesh file: {path}")
     suffixes = [s.lower() for s in path.suffixes]
@@ -100,6 +84,31 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         raise MeshFileError(f"cannot read {path}: it does not fit in memory") from err
     except OSError as err:
         raise MeshFileError(f"cannot read {path}: {err.strerror or err}") from err
+    return source, file_type, compressed
+
+
+def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a triangle mesh file; return ``(vertices float64 (n, 3), faces int64 (m, 3))``.
+
+    Before trimesh parses a PLY, OFF, STL or GLB file, the counts its header declares are
+    compared with what the file holds (see ``meshbits._filecheck``): a 200-byte file that
+    declares 10**12 vertices is refused at once, without allocating for them. A ``.gz``
+    file may inflate to at most :data:`GZIP_MAX_RATIO` times its size (at least
+    :data:`GZIP_MIN_LIMIT` bytes): beyond that it is refused as a decompression bomb.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``path`` does not exist.
+    MeshFileError
+        The file cannot be parsed, its header disagrees with its content, it holds no
+        triangles, or it holds NaN or infinite coordinates or vertex indices out of range
+        (a ``ValueError``). Nothing else, whatever the file holds.
+    """
+    import trimesh
+
+    path = Path(path)
+    source, file_type, compressed = checked_mesh_file(path)
     try:
         # Corrupt data makes parsers cast NaN to int, overflow and the like: the file is
         # refused or read all the same, the warnings tell the caller nothing more.

@@ -1268,6 +1268,17 @@ def certify_answer(
             search.levels[best.level].errors[best.bits] = _learned(
                 max(best.measured_error, h.distance), upper, search.budget, True
             )
+            if progress is not None:
+                verdict = "holds" if checked.met else "misses the budget: not met after all"
+                progress(
+                    Progress(
+                        "compress",
+                        f"certify: B = {best.bits}, V = {best.vertices}; error "
+                        f"{checked.measured_error:.4g}, certified <= {upper:.4g} "
+                        f"(budget {search.budget:.4g}) (mesh units): {verdict}",
+                        checked,
+                    )
+                )
             if checked.met:
                 return
         if best is not None or round_ == 1 or extra_passes < 1:
