@@ -13,6 +13,7 @@ arrays (best of ``--repeat`` calls for meshbits, of fewer for the slower referen
   compress measures, and all ``hausdorff_open3d`` returns).
 
     python benches/bench_refs.py [--repeat 5] [--large] [--skip-hausdorff]
+    python benches/bench_refs.py --linearity
 """
 
 from __future__ import annotations
@@ -73,14 +74,40 @@ def row(what: str, faces: int, ours: float, ref: float, target: float, note: str
     )
 
 
+def linearity(repeat: int) -> None:
+    """K's ns/face on bumpy icospheres of 1.3M, 5.2M and 21M faces, in one process
+    (target: within 1.3x of each other)."""
+    print(f"load average {os.getloadavg()[0]:.1f} at the start, {os.cpu_count()} cores")
+    print("| subdivision | faces | K (ms) | ns/face |")
+    print("|---:|---:|---:|---:|")
+    per_face = []
+    for s in (8, 9, 10):
+        V, F = refs.bumpy_icosphere(s)
+        seconds = best(repeat if s < 10 else 3, meshbits.shape_complexity, V, F)
+        per_face.append(1e9 * seconds / len(F))
+        print(f"| {s} | {len(F):,} | {1e3 * seconds:.1f} | {per_face[-1]:.0f} |", flush=True)
+        del V, F
+    spread = max(per_face) / min(per_face)
+    print(f"\nns/face from 1.3M to 21M faces: {spread:.2f}x apart (target <= 1.3x)")
+    print(f"load average at the end: {os.getloadavg()[0]:.1f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--large", action="store_true", help="also K at subdivision 9")
     parser.add_argument("--skip-hausdorff", action="store_true")
+    parser.add_argument(
+        "--linearity",
+        action="store_true",
+        help="only K's time per face at subdivisions 8, 9 and 10 (1.3M to 21M faces)",
+    )
     args = parser.parse_args()
     if meshbits._core.BUILD_PROFILE != "release":
         raise SystemExit("benchmark a release build: maturin develop --release")
+    if args.linearity:
+        linearity(args.repeat)
+        return
     load = os.getloadavg()[0]
     print(
         f"meshbits {meshbits.__version__}, {os.cpu_count()} cores, load average {load:.1f} "

@@ -353,8 +353,13 @@ def test_every_progress_callback_receives_progress_events(tmp_path):
         assert all(event.source == source and str(event) == event.message for event in seen)
         assert all(json.dumps(event.to_dict()) for event in seen)
     # the answer's record gains its certified bound after its pass was reported
-    passes = [(e.detail.level, e.detail.bits) for e in events["compress"]]
+    passes = [
+        (e.detail.level, e.detail.bits) for e in events["compress"] if e.message.startswith("pass:")
+    ]
     assert passes == [(it.level, it.bits) for it in result.iterations]
+    # and each certification of an answer is an event of its own, after the passes
+    certified = [e for e in events["compress"] if e.message.startswith("certify:")]
+    assert certified and certified[-1].detail.measured_error_upper == result.error_upper
     assert "B = " in events["compress"][0].message and "bytes" in events["compress"][0].message
 
 
