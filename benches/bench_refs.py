@@ -1,4 +1,5 @@
-"""The speed targets of issue 16, each against its reference in ../shared/bench-refs/refs.py.
+"""The speed targets of issue 16, each against its reference in ../shared/bench-refs/refs.py
+(stated in docs/benchmarks.md).
 
 Every ratio is ``reference time / meshbits time`` measured in this one run, on the same
 arrays (best of ``--repeat`` calls for meshbits, of fewer for the slower references):

@@ -6,7 +6,8 @@ The scene: bunny, horse, armadillo and Spot from ../shared/meshes, with vertex n
 under nodes with scales 1 to 4 (the armadillo shown twice). For each fixed-bits tool the
 output is read back without meshbits (gltfpack's own decoder, ``-noq``, then trimesh; or
 DracoPy), flattened to world space, and its Hausdorff distance to the input measured with
-Open3D (``hausdorff_open3d`` of ../shared/bench-refs/refs.py). compress_scene then gets
+Open3D (``hausdorff_open3d`` of ../shared/bench-refs/refs.py, stated in
+docs/benchmarks.md). compress_scene then gets
 that distance as its world-space error budget, with the same codec, and its output is
 measured the same way.
 

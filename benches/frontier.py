@@ -7,8 +7,11 @@ them to their quadric optimum, fast-simplification), times every B from 6 to 20;
 encoded with Draco (DracoPy, compression level 7, the cube grid of the original's box) and
 decoded with DracoPy. Every cell is measured with meshbits; the cells that decide a
 budget, and every output of compress, are measured independently of meshbits with Open3D
-(``hausdorff_open3d`` of ../shared/bench-refs/refs.py: every vertex plus 300,000 area
-samples per mesh, float32 RaycastingScene), and Open3D's number decides.
+(``hausdorff_open3d`` of ../shared/bench-refs/refs.py, stated in docs/benchmarks.md: every
+vertex plus 300,000 area samples per mesh, float32 RaycastingScene), and Open3D's number
+decides. For error budgets a certified oracle is placed too: the smallest cell whose
+meshbits certified bound, refined until it decides the budget as compress certifies its
+answers, is within it (and Open3D confirms it).
 
 For each error budget (0.005, 0.002, 0.001, 0.0005 S) the oracle's best is the smallest
 cell whose Open3D error is within the budget; for each size budget (4, 16, 64 kB) the

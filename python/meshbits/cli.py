@@ -89,6 +89,11 @@ def _length(text: str) -> float:
     return value
 
 
+def _check_relative(args: argparse.Namespace) -> None:
+    if args.relative and args.error is None:
+        raise UserError("--relative applies to --error only")
+
+
 def _note_unit(args: argparse.Namespace, path: Path) -> None:
     """Say how an error given with a unit is read from a file format without units."""
     text = getattr(args.error, "text", "")
@@ -362,8 +367,7 @@ def _budget_text(args: argparse.Namespace) -> str:
 def _run_compress(args: argparse.Namespace) -> int:
     from .compress import compress
 
-    if args.relative and args.error is None:
-        raise UserError("--relative applies to --error only")
+    _check_relative(args)
     _check_size_model(args)
     output = args.output
     suffix = output.suffix.lower() if output else ".drc"
@@ -636,8 +640,7 @@ def _add_batch(sub: argparse._SubParsersAction) -> None:
 def _run_batch(args: argparse.Namespace) -> int:
     from .batch import BatchInterrupted, batch
 
-    if args.relative and args.error is None:
-        raise UserError("--relative applies to --error only")
+    _check_relative(args)
     if args.dask is not None and args.workers is not None:
         raise UserError("give --workers or --dask, not both (--dask local:N sets the workers)")
     try:
@@ -904,8 +907,7 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_plan(args: argparse.Namespace) -> int:
-    if args.relative and args.error is None:
-        raise UserError("--relative applies to --error only")
+    _check_relative(args)
     _check_size_model(args)
     report = _complexity_report(args.mesh, args)
     k, grid_size = report["k"], report["grid_size"]

@@ -119,11 +119,6 @@ def _grid(vertices: np.ndarray, origin: Any, grid_size: Any) -> tuple[np.ndarray
     return lo, size
 
 
-def _referenced(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The mesh without its unreferenced vertices (faces reindexed)."""
-    return compact(vertices, faces)
-
-
 def _check_bits(bits: int, high: int) -> int:
     if not isinstance(bits, (int, np.integer)) or not 1 <= bits <= high:
         raise MeshbitsError(f"bits must be an integer from 1 to {high}, got {bits!r}")
@@ -211,7 +206,7 @@ def encode_quantized_ply(
     accepts); unreferenced vertices dropped."""
     vertices, faces = as_mesh(mesh)
     bits = _check_bits(bits, FORMAT_MAX_BITS["ply"])
-    vertices, faces = _referenced(vertices, faces)
+    vertices, faces = compact(vertices, faces)
     lo, size = _grid(vertices, origin, grid_size)
     quantized = quantize(vertices, bits, box=(lo, lo + size))
     positions = quantized.positions.astype(np.float32)
@@ -262,7 +257,7 @@ def encode_quantized_glb(
 
     vertices, faces = as_mesh(mesh)
     bits = _check_bits(bits, FORMAT_MAX_BITS["glb"])
-    vertices, faces = _referenced(vertices, faces)
+    vertices, faces = compact(vertices, faces)
     lo, size = _grid(vertices, origin, grid_size)
     q = quantize(vertices, bits, box=(lo, lo + size))
     codes = np.asarray(q.codes, dtype=np.uint16)

@@ -457,15 +457,14 @@ def load_document(path: str | Path) -> Document:
         raise FileNotFoundError(f"no such file: {path}")
     suffix = path.suffix.lower()
     try:
-        if suffix == ".glb":
-            return _from_glb(path.read_bytes(), path.parent)
-        if suffix == ".gltf":
+        if suffix not in (".glb", ".gltf"):
+            return _from_trimesh(path)  # its messages name the file
+        try:
+            if suffix == ".glb":
+                return _from_glb(path.read_bytes(), path.parent)
             return _from_gltf(json.loads(path.read_text(encoding="utf-8")), path.parent)
-        return _from_trimesh(path)
-    except MeshFileError as err:
-        if str(err).startswith(("cannot read", str(path))):
-            raise
-        raise MeshFileError(f"cannot read {path}: {err}") from None
+        except MeshFileError as err:
+            raise MeshFileError(f"cannot read {path}: {err}") from None
     except (MeshbitsError, FileNotFoundError):
         raise
     except Exception as err:

@@ -127,10 +127,6 @@ def referenced_vertex_count(faces: np.ndarray) -> int:
     return int(referenced(faces).size)
 
 
-def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    return compact(vertices, faces)
-
-
 def _check_target(name: str, value: Any, smallest: float) -> Any:
     if value is None:
         return None
@@ -359,7 +355,7 @@ def _fast_simplification(
             agg=aggressiveness,
             preserve_border=preserve_border,
         )
-    return _compact(np.asarray(out_vertices, dtype=np.float64), np.asarray(out_faces))
+    return compact(np.asarray(out_vertices, dtype=np.float64), np.asarray(out_faces))
 
 
 def _fast_simplification_to(
@@ -382,7 +378,7 @@ def _fast_simplification_to(
     """
     used = referenced_vertex_count(faces)
     if target_vertices >= used or len(faces) < 2:
-        return _compact(vertices, faces.astype(np.int64))
+        return compact(vertices, faces.astype(np.int64))
     check_untangled(len(faces), used, "simplified")
     ratio = len(faces) / used
 
