@@ -245,33 +245,38 @@ impl TriangleTree {
             root_count: 0,
             root_min: [0.0; 3],
             root_max: [0.0; 3],
-            triangles: Vec::with_capacity(faces.len()),
+            triangles: Vec::new(),
             faces: Vec::with_capacity(faces.len()),
             depth: 0,
             vertex_count: vertices.len(),
         };
         if !bvh.nodes.is_empty() {
-            tree.copy_from(&bvh, |face| {
-                let f = faces[face as usize];
-                PreparedTriangle::new(local(f[0]), local(f[1]), local(f[2]))
-            });
+            tree.copy_from(&bvh);
+            tree.triangles = tree
+                .faces
+                .par_iter()
+                .with_min_len(1 << 12)
+                .map(|&face| {
+                    let f = faces[face as usize];
+                    PreparedTriangle::new(local(f[0]), local(f[1]), local(f[2]))
+                })
+                .collect();
         }
 
         Ok(tree)
     }
 
-    /// Copies obvhs's nodes into sibling pairs in depth-first order, and the triangles
-    /// into leaf order.
-    fn copy_from(&mut self, bvh: &Bvh2, prepare: impl Fn(u32) -> PreparedTriangle) {
+    /// Copies obvhs's nodes into sibling pairs in depth-first order, and the face indices
+    /// into leaf order (the triangles are then prepared in parallel, in that order).
+    fn copy_from(&mut self, bvh: &Bvh2) {
         let root = &bvh.nodes[0];
         self.root_min = root.aabb.min.to_array();
         self.root_max = root.aabb.max.to_array();
         let push_leaf = |tree: &mut Self, first: u32, count: u32| -> u32 {
-            let slot = tree.triangles.len() as u32;
-            for &face in &bvh.primitive_indices[first as usize..(first + count) as usize] {
-                tree.triangles.push(prepare(face));
-                tree.faces.push(face);
-            }
+            let slot = tree.faces.len() as u32;
+            tree.faces.extend_from_slice(
+                &bvh.primitive_indices[first as usize..(first + count) as usize],
+            );
             slot
         };
         if root.is_leaf() {
