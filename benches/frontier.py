@@ -9,9 +9,12 @@ decoded with DracoPy. Every cell is measured with meshbits; the cells that decid
 budget, and every output of compress, are measured independently of meshbits with Open3D
 (``hausdorff_open3d`` of ../shared/bench-refs/refs.py, stated in docs/benchmarks.md: every
 vertex plus 300,000 area samples per mesh, float32 RaycastingScene), and Open3D's number
-decides. For error budgets a certified oracle is placed too: the smallest cell whose
+decides. A certified oracle is placed too. For error budgets: the smallest cell whose
 meshbits certified bound, refined until it decides the budget as compress certifies its
-answers, is within it (and Open3D confirms it).
+answers, is within it (and Open3D confirms it). For size budgets: the cell of least
+certified error (the bound's upper end, refined to within 1% of the sampled maximum),
+against compress's output certified the same way; sampled maxima are lower bounds, and
+the least of many is biased low.
 
 For each error budget (0.005, 0.002, 0.001, 0.0005 S) the oracle's best is the smallest
 cell whose Open3D error is within the budget; for each size budget (4, 16, 64 kB) the
@@ -30,6 +33,7 @@ from __future__ import annotations
 import argparse
 import gzip
 import json
+import math
 import statistics
 import sys
 import time
@@ -56,6 +60,12 @@ SIZE_BUDGETS_KB = [4, 16, 64]
 BITS = range(6, 21)
 LADDER = 20
 OPEN3D_SAMPLES = 300_000
+#: Relative width of the certified interval that places a size budget's error: the
+#: Hausdorff distance of compress's output and of the oracle's cells is known within 1%.
+TIGHT = 0.01
+#: A size budget gets no certified oracle when this many of its least-error cells do not
+#: converge within the refinement budget (errors of about 1e-5 S and below).
+MAX_UNSETTLED = 5
 SIMPLIFIERS = {
     "meshopt": {"method": "meshopt"},
     "meshopt-update": {"method": "meshopt", "update_positions": True},
@@ -188,11 +198,8 @@ class Oracle:
         bounds = cell.setdefault("certified", {})
         key = str(budget)
         if key not in bounds:
-            if self.reference is None:
-                count = max(default_samples(len(self.mesh[1])), MIN_SAMPLES)
-                self.reference = meshbits.Reference(self.mesh, samples=count, seed=0)
             absolute = budget * self.grid_size
-            h = self.reference.hausdorff(
+            h = self._reference_tree().hausdorff(
                 self._decoded(cell),
                 bounds=True,
                 tolerance=CERTIFY_TOLERANCE * absolute,
@@ -201,6 +208,48 @@ class Oracle:
             bounds[key] = float(h.upper) / self.grid_size
             self._save()
         return bounds[key]
+
+    def _reference_tree(self) -> meshbits.Reference:
+        if self.reference is None:
+            count = max(default_samples(len(self.mesh[1])), MIN_SAMPLES)
+            self.reference = meshbits.Reference(self.mesh, samples=count, seed=0)
+        return self.reference
+
+    def tight(self, decoded: tuple, sampled: float) -> float | None:
+        """The Hausdorff distance / S of ``decoded`` to the original, certified within
+        :data:`TIGHT` of the sampled ``sampled`` (/ S): the bound's upper end; None when
+        the refinement budget ran out first."""
+        h = self._reference_tree().hausdorff(
+            decoded, bounds=True, tolerance=TIGHT * sampled * self.grid_size
+        )
+        converged = h.a_to_b.converged and h.b_to_a.converged
+        return float(h.upper) / self.grid_size if converged else None
+
+    def tight_cell(self, cell: dict) -> float:
+        """:meth:`tight` of a cell, computed once (infinite when it did not converge)."""
+        if "tight2" not in cell:
+            cell["tight2"] = self.tight(self._decoded(cell), cell["error"])
+            self._save()
+        return math.inf if cell["tight2"] is None else cell["tight2"]
+
+    def best_for_size_certified(self, limit: float) -> dict | None:
+        """The cell of least certified error within the size. A cell's sampled error is
+        a lower bound of its distance, so cells are certified in order of it until the
+        next one's is above the least certified bound found; None after
+        :data:`MAX_UNSETTLED` cells whose bound did not converge."""
+        best: dict | None = None
+        unsettled = 0
+        fitting = [c for c in self.cells if c["bytes"] <= limit]
+        for cell in sorted(fitting, key=lambda c: c["error"]):
+            if best is not None and cell["error"] >= self.tight_cell(best):
+                break
+            if math.isinf(self.tight_cell(cell)):
+                unsettled += 1
+                if unsettled >= MAX_UNSETTLED:
+                    return None
+            elif best is None or self.tight_cell(cell) < self.tight_cell(best):
+                best = cell
+        return best
 
     def best_for_error_certified(self, budget: float) -> dict | None:
         """The smallest cell certified within the budget (and confirmed by Open3D): the
@@ -295,6 +344,13 @@ def evaluate(name: str, mesh: tuple, oracle: Oracle) -> list[dict]:
                 row["confirmed"] = result.size_bytes <= limit
                 row["oracle_error"] = best["open3d"] if best else None
                 row["excess"] = error / best["open3d"] - 1 if best else None
+                certified = oracle.best_for_size_certified(limit)
+                own = oracle.tight(decoded, result.error / oracle.grid_size)
+                row["certified_error"] = own
+                row["oracle_certified_error"] = oracle.tight_cell(certified) if certified else None
+                row["excess_certified"] = (
+                    own / oracle.tight_cell(certified) - 1 if certified and own else None
+                )
             row["oracle_reaches"] = best is not None
             rows.append(row)
             print(
@@ -365,7 +421,13 @@ def summary(rows: list[dict]) -> None:
         oracle_value = (
             r.get("oracle_bytes") if r["kind"] == "error" else f"{r.get('oracle_error'):.3g}"
         )
-        certified = r.get("oracle_certified_bytes")
+        certified = (
+            r.get("oracle_certified_bytes")
+            if r["kind"] == "error"
+            else f"{r['oracle_certified_error']:.3g}"
+            if r.get("oracle_certified_error") is not None
+            else None
+        )
         print(
             f"| {r['mesh']} | {r['budget']} {unit} | {r['bits']}, {r['vertices']} | "
             f"{r['bytes']} | {r['error']:.3g} | {oracle_value} | {_pct(r['excess'])} | "
@@ -380,9 +442,17 @@ def summary(rows: list[dict]) -> None:
     certified = [r["excess_certified"] for r in rows if r.get("excess_certified") is not None]
     if certified:
         print(
-            f"excess over the certified oracle (error budgets): median "
+            f"excess over the certified oracle: median "
             f"{_pct(statistics.median(certified))}, worst {_pct(max(certified))}"
         )
+        for kind in ("error", "size"):
+            part = [r["excess_certified"] for r in rows if r["kind"] == kind]
+            part = [x for x in part if x is not None]
+            if part:
+                print(
+                    f"  {kind} budgets: median {_pct(statistics.median(part))}, "
+                    f"worst {_pct(max(part))}"
+                )
     for kind in ("error", "size"):
         part = [r["excess"] for r in rows if r["kind"] == kind and r["excess"] is not None]
         if part:

@@ -317,7 +317,7 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
         choices=("auto", "meshopt", "fast-simplification"),
         default="auto",
         help="simplifier: meshoptimizer (error targets, spikes locked), fast-simplification, "
-        "or auto (whichever simplifies this mesh closer to the original; default)",
+        "or auto (both compete up to 200,000 faces, measured; meshoptimizer above; default)",
     )
     p.add_argument(
         "--alpha",

@@ -223,10 +223,10 @@ def compress(
         ``simplifier(vertices, faces, target_vertices) -> (vertices, faces)``, driven by
         vertex counts, instead of ``method``.
     method
-        ``"auto"`` (default): whichever of the two below simplifies this mesh closer to
-        the original at the first plan's vertex count; ``"meshopt"`` (meshoptimizer,
-        driven by error targets, vertices moved to their quadric optimum) or
-        ``"fast-simplification"`` (vertex counts). docs/frontier.md compares them.
+        ``"auto"`` (default): on a mesh of at most 200,000 faces, levels of both below
+        compete and the measurements decide (above, meshoptimizer); ``"meshopt"``
+        (meshoptimizer, driven by error targets, vertices moved to their quadric optimum)
+        or ``"fast-simplification"`` (vertex counts). docs/frontier.md compares them.
     format
         ``"draco"`` (default; DracoPy, ``quantization_bits=B`` on the paper's grid),
         ``"glb"`` (glTF with integer positions, KHR_mesh_quantization, B <= 16) or

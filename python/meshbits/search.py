@@ -437,8 +437,8 @@ class Search:
     alpha, connectivity_bits : float
         The paper's size model, for the first plan.
     method : str or None
-        ``"meshopt"``, ``"fast-simplification"``, or ``"auto"`` (the one that simplifies
-        this mesh closer to the original, see :meth:`simplifier_method`); None with
+        ``"meshopt"``, ``"fast-simplification"``, or ``"auto"`` (both compete, see
+        :meth:`simplifier_methods`); None with
         ``simplifier`` or ``lods``.
     simplifier : callable, optional
         ``simplifier(vertices, faces, target_vertices) -> (vertices, faces)``.
@@ -494,6 +494,13 @@ class Search:
         self.connectivity_bits = float(connectivity_bits)
         self.method = method
         self.simplifier = simplifier
+        self.compete = (
+            method == "auto"
+            and simplifier is None
+            and lods is None
+            and attributes is None
+            and len(original[1]) <= BASE_FACES
+        )
         self.samples = int(samples)
         self.certify = certify
         self.tolerance = tolerance
@@ -598,6 +605,14 @@ class Search:
 
     def _can_simplify(self) -> bool:
         return not self.lods and (self.method is not None or self.simplifier is not None)
+
+    def simplifier_methods(self) -> list[str | None]:
+        """The simplifiers whose levels compete in the search: for ``"auto"`` on a mesh
+        of at most :data:`BASE_FACES` faces without attributes, both (a level of each is
+        planned, and the measurements decide); else :meth:`simplifier_method`'s."""
+        if self.compete:
+            return ["meshopt", "fast-simplification"]
+        return [self.simplifier_method()]
 
     def simplifier_method(self) -> str | None:
         """The simplifier of this search: the one asked for, or for ``"auto"`` the one
@@ -704,14 +719,15 @@ class Search:
                 return index
         return None
 
-    def _level_for(self, tessellation: float, aim_locks: float | None) -> int | None:
+    def _level_for(
+        self, tessellation: float, aim_locks: float | None, method: str | None
+    ) -> int | None:
         """A level whose tessellation error is at most ``tessellation`` and as close to
         it as a few simplifications find: the simplifier's parameter (meshopt's error
         target, or a vertex count) is interpolated in log-log between the levels built so
         far, which are judged by their measured or quick-estimated error."""
         if not self._can_simplify() or tessellation <= 0:
             return None
-        method = self.simplifier_method()
         by_error = method == "meshopt"
         if tessellation < 0.99 * self.floor.get(method or "", 0.0):
             return None
@@ -866,7 +882,8 @@ class Search:
         bits_range = self._error_bits()
         for bits in bits_range:
             room = allowed_tessellation(aim, quantization_error(bits, self.grid_size), self.delta())
-            self._level_for(room, room)
+            for method in self.simplifier_methods():
+                self._level_for(room, room, method)
         out = []
         for index, level in enumerate(self.levels):
             for bits in bits_range:
@@ -924,7 +941,8 @@ class Search:
         the original at the most bits that fit; and every encoding built so far that
         fits."""
         for bits in self._size_bits():
-            self._fitting_level(bits)
+            for method in self.simplifier_methods():
+                self._fitting_level(bits, method)
         self._original_most_bits()
         out = []
         for index, level in enumerate(self.levels):
@@ -943,7 +961,7 @@ class Search:
             mid = (lo + hi + 1) // 2
             lo, hi = (mid, hi) if self._original_fits(mid) else (lo, mid - 1)
 
-    def _fitting_level(self, bits: int) -> int | None:
+    def _fitting_level(self, bits: int, method: str | None) -> int | None:
         """The finest level whose encoding at ``bits`` fits the size budget: the original
         if it fits, else a simplification sized by the bits per vertex seen."""
         if not self._can_simplify():
@@ -956,7 +974,6 @@ class Search:
             return max(fitting, key=lambda i: self.levels[i].vertex_count, default=None)
         if self._original_fits(bits):
             return 0
-        method = self.simplifier_method()
         vertices = FIT_AIM * self.budget / self._rate(bits)
         fitting: int | None = None
         aim = FIT_AIM
