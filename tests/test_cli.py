@@ -68,6 +68,29 @@ def test_bad_files_give_one_line_error_and_exit_2(tmp_path, capsys, content):
     assert err.startswith("meshbits k: error:") and err.count("\n") == 1
 
 
+@pytest.mark.parametrize("suffix", [".drc", ".glb"])
+def test_nan_coordinates_give_one_line_naming_the_file(tmp_path, suffix):
+    """To a scene output, numpy warned of the NaN (a second line) before the error, which
+    did not name the file."""
+    path = tmp_path / "nan.ply"
+    path.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n"
+    )
+    argv = ["compress", str(path), "--error", "0.002", "-o", str(tmp_path / f"out{suffix}")]
+    out = subprocess.run(
+        [sys.executable, "-W", "default", "-m", "meshbits.cli", *argv],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert out.returncode == 2
+    assert out.stderr.count("\n") == 1 and "NaN" in out.stderr, out.stderr
+    assert str(path) in out.stderr, out.stderr
+    assert not (tmp_path / f"out{suffix}").exists()
+
+
 def test_missing_file_exits_2(capsys):
     assert main(["k", "/nonexistent/mesh.ply"]) == 2
     assert "no such mesh file" in capsys.readouterr().err
@@ -156,3 +179,15 @@ def test_a_certification_that_fails_is_said(capsys):
         line.endswith("holds") or ("certified <=" in line and not line.endswith("budget"))
         for line in lines[failed + 1 :]
     ), err
+
+
+def test_an_obj_output_reports_the_bytes_of_its_file(tmp_path, capsys):
+    """The success line gave the Draco size the search sized (4,021 bytes here) for an
+    OBJ file twenty times larger."""
+    path = tmp_path / "b.obj"
+    argv = ["compress", str(DATA / "bunny_res3.ply"), "--error", "0.005", "--relative"]
+    assert main([*argv, "-o", str(path), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert f"wrote {path}: {path.stat().st_size} bytes (obj" in out, out
+    assert main([*argv, "-o", str(path), "--quiet", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["file_bytes"] == path.stat().st_size

@@ -387,7 +387,11 @@ def _message(constraint: str, budget: float, met: bool, record: Iteration, passe
     )
     if met:
         return f"met the {constraint} budget of {_describe(constraint, budget)} with {outcome}"
-    closest = {"size": "smallest output", "error": "most accurate output"}[constraint]
+    closest = {
+        "size": "smallest output",
+        "error": "most accurate output",
+        "vertices": "output with the fewest vertices",
+    }[constraint]
     return (
         f"could not meet the {constraint} budget of {_describe(constraint, budget)} in "
         f"{passes} pass{'' if passes == 1 else 'es'}; the {closest} reached: {outcome}"

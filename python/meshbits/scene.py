@@ -35,6 +35,7 @@ from .gltf import (
     WIDTH_TYPES,
     Document,
     PrimitiveData,
+    finite_or_fail,
     image_size,
     largest_scale,
     load_document,
@@ -773,6 +774,11 @@ def compress_scene(
         nodes = instances.get(data.mesh, [])
         scale = max((largest_scale(m) for _, m in nodes), default=1.0) or 1.0
         mesh_name = document.json["meshes"][data.mesh].get("name")
+        where = "" if isinstance(source, Document) else f"{source}: "
+        finite_or_fail(
+            f"{where}mesh {data.mesh} ({mesh_name or 'unnamed'}), primitive {data.index}: POSITION",
+            data.positions,
+        )
         bits = choose_attribute_bits(document, data, normal_tolerance)
         jobs.append(_Job(data, mesh_name, len(nodes), scale, bits))
     if not jobs:

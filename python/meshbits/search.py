@@ -134,6 +134,10 @@ LOCK_ROUNDS_LARGE = 1
 #: 20,071: locking them took its error from 1.35e-2 to 1.25e-3 S.)
 LOCK_MAX_FRACTION = 0.1
 
+#: Simplifications tried to reach a vertex budget (a simplifier's vertex target is
+#: approximate).
+VERTEX_TRIES = 3
+
 #: Simplifications tried to fit a size budget at one B.
 FIT_TRIES = 3
 
@@ -1036,7 +1040,18 @@ class Search:
         elif target >= self.available:
             index = 0
         else:
-            index = self._simplified(self.simplifier_method(), vertices=target) or 0
+            # A simplifier's vertex target is approximate (meshoptimizer's is a face
+            # count), and the encoder may split vertices: aim lower while the encoded
+            # level holds more vertices than the budget.
+            method = self.simplifier_method()
+            aim = target
+            index = 0
+            for _ in range(VERTEX_TRIES):
+                index = self._simplified(method, vertices=aim) or 0
+                count = len(self._encoded(index, bits).vertices)
+                if index == 0 or count <= self.budget:
+                    break
+                aim *= 0.99 * self.budget / count
         return self._candidate(index, bits)
 
     def _fallback(self) -> _Candidate:
@@ -1076,7 +1091,7 @@ class Search:
         elif self.constraint == "size":
             met = encoded.size_bits <= self.budget
         else:
-            met = True
+            met = len(encoded.vertices) <= self.budget
         record = Iteration(
             level=candidate.level,
             source=level.source,
@@ -1119,10 +1134,14 @@ class Search:
         return measurement.decisive_error <= (1 - CLEAR_MARGIN) * self.budget
 
     def closest(self) -> Iteration:
-        """The measurement that misses the budget least."""
+        """The measurement that misses the budget least: the smallest file, the fewest
+        vertices, or the least sampled error (a lower bound on every measurement, where
+        a certified bound refined only to decide the budget can be loose)."""
         if self.constraint == "size":
             return min(self.measurements, key=lambda m: m.measured_size_bits)
-        return min(self.measurements, key=lambda m: m.decisive_error)
+        if self.constraint == "vertices":
+            return min(self.measurements, key=lambda m: m.vertices)
+        return min(self.measurements, key=lambda m: m.measured_error)
 
     def encoded(self, measurement: Iteration) -> Encoded:
         return self.levels[measurement.level].encodings[measurement.bits]
