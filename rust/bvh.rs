@@ -32,7 +32,6 @@
 //! a triangle with squared distance `< stop_below_d2`; the answer is then an upper bound
 //! on the true distance, not the minimum. The max-only Hausdorff uses it.
 
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use glam::{DVec3, Vec3A};
@@ -139,199 +138,6 @@ pub struct TriangleTree {
     faces: Vec<u32>,
     depth: usize,
     vertex_count: usize,
-}
-
-/// Depth above which [`TriangleTree`]'s layout and [`subtree_sizes`] split into two
-/// parallel tasks per node (up to 2^12 tasks); below, each subtree is one loop.
-const SPLIT_DEPTH: usize = 12;
-
-/// Sibling pairs (inner nodes) and triangles under one obvhs node.
-#[derive(Debug, Clone, Copy, Default)]
-struct SubtreeSize {
-    pairs: u32,
-    triangles: u32,
-}
-
-impl SubtreeSize {
-    fn pack(self) -> u64 {
-        (u64::from(self.pairs) << 32) | u64::from(self.triangles)
-    }
-
-    fn unpack(bits: u64) -> Self {
-        SubtreeSize {
-            pairs: (bits >> 32) as u32,
-            triangles: bits as u32,
-        }
-    }
-}
-
-/// [`SubtreeSize`] of every obvhs node (indexed like `bvh.nodes`).
-fn subtree_sizes(bvh: &Bvh2) -> Vec<SubtreeSize> {
-    let sizes: Vec<AtomicU64> = (0..bvh.nodes.len())
-        .into_par_iter()
-        .with_min_len(1 << 12)
-        .map(|_| AtomicU64::new(0))
-        .collect();
-    sizes_below(bvh, 0, &sizes, 0);
-    sizes
-        .into_par_iter()
-        .with_min_len(1 << 12)
-        .map(|s| SubtreeSize::unpack(s.into_inner()))
-        .collect()
-}
-
-/// Fills `sizes` under `node` (post-order; parallel above [`SPLIT_DEPTH`]).
-fn sizes_below(bvh: &Bvh2, node: usize, sizes: &[AtomicU64], depth: usize) -> SubtreeSize {
-    let n = &bvh.nodes[node];
-    if n.is_leaf() {
-        let size = SubtreeSize {
-            pairs: 0,
-            triangles: n.prim_count,
-        };
-        sizes[node].store(size.pack(), Ordering::Relaxed);
-        return size;
-    }
-    if depth >= SPLIT_DEPTH {
-        let mut todo = vec![(node, false)];
-        while let Some((index, children_done)) = todo.pop() {
-            let n = &bvh.nodes[index];
-            if n.is_leaf() {
-                let size = SubtreeSize {
-                    pairs: 0,
-                    triangles: n.prim_count,
-                };
-                sizes[index].store(size.pack(), Ordering::Relaxed);
-            } else if children_done {
-                let first = n.first_index as usize;
-                let [a, b] = [first, first + 1]
-                    .map(|c| SubtreeSize::unpack(sizes[c].load(Ordering::Relaxed)));
-                let size = SubtreeSize {
-                    pairs: 1 + a.pairs + b.pairs,
-                    triangles: a.triangles + b.triangles,
-                };
-                sizes[index].store(size.pack(), Ordering::Relaxed);
-            } else {
-                let first = n.first_index as usize;
-                todo.extend([(index, true), (first, false), (first + 1, false)]);
-            }
-        }
-        return SubtreeSize::unpack(sizes[node].load(Ordering::Relaxed));
-    }
-    let first = n.first_index as usize;
-    let (a, b) = rayon::join(
-        || sizes_below(bvh, first, sizes, depth + 1),
-        || sizes_below(bvh, first + 1, sizes, depth + 1),
-    );
-    let size = SubtreeSize {
-        pairs: 1 + a.pairs + b.pairs,
-        triangles: a.triangles + b.triangles,
-    };
-    sizes[node].store(size.pack(), Ordering::Relaxed);
-    size
-}
-
-/// obvhs's tree and its subtree sizes, for [`TriangleTree::copy_from`].
-struct Layout<'a> {
-    bvh: &'a Bvh2,
-    sizes: &'a [SubtreeSize],
-}
-
-impl Layout<'_> {
-    /// Lays out the subtree of the inner obvhs node `node`: its pair at `pairs[0]`
-    /// (global index `pair_base`), the pairs below in the rest of `pairs`, its triangles'
-    /// faces in `faces` (global slot `face_base`). Returns the subtree's depth in pairs.
-    fn fill(
-        &self,
-        node: usize,
-        pairs: &mut [Pair],
-        pair_base: u32,
-        faces: &mut [u32],
-        face_base: u32,
-        depth: usize,
-    ) -> usize {
-        if depth >= SPLIT_DEPTH {
-            return self.fill_loop(node, pairs, pair_base, faces, face_base);
-        }
-        let first = self.bvh.nodes[node].first_index as usize;
-        let (this, rest) = pairs.split_at_mut(1);
-        let left = self.sizes[first];
-        let (left_pairs, right_pairs) = rest.split_at_mut(left.pairs as usize);
-        let (left_faces, right_faces) = faces.split_at_mut(left.triangles as usize);
-        let bases = [
-            (pair_base + 1, face_base),
-            (pair_base + 1 + left.pairs, face_base + left.triangles),
-        ];
-        let mut built = Pair::default();
-        let mut inner = [false; 2];
-        for (k, &(child_pair, child_face)) in bases.iter().enumerate() {
-            let child = &self.bvh.nodes[first + k];
-            built.min[k] = child.aabb.min.to_array();
-            built.max[k] = child.aabb.max.to_array();
-            if child.is_leaf() {
-                built.count[k] = child.prim_count;
-                built.link[k] = child_face;
-            } else {
-                built.link[k] = child_pair;
-                inner[k] = true;
-            }
-        }
-        this[0] = built;
-        let side = |k: usize, pairs: &mut [Pair], faces: &mut [u32]| -> usize {
-            let (child_pair, child_face) = bases[k];
-            let child = &self.bvh.nodes[first + k];
-            if inner[k] {
-                self.fill(first + k, pairs, child_pair, faces, child_face, depth + 1)
-            } else {
-                let from = child.first_index as usize;
-                faces.copy_from_slice(&self.bvh.primitive_indices[from..from + faces.len()]);
-                0
-            }
-        };
-        let (a, b) = rayon::join(
-            || side(0, left_pairs, left_faces),
-            || side(1, right_pairs, right_faces),
-        );
-        1 + a.max(b)
-    }
-
-    /// [`Self::fill`] in one loop: pairs numbered as they are discovered.
-    fn fill_loop(
-        &self,
-        node: usize,
-        pairs: &mut [Pair],
-        pair_base: u32,
-        faces: &mut [u32],
-        face_base: u32,
-    ) -> usize {
-        let mut next_pair = 1u32;
-        let mut next_face = 0u32;
-        let mut deepest = 0;
-        let mut todo = vec![(self.bvh.nodes[node].first_index as usize, 0u32, 1usize)];
-        while let Some((first, local, depth)) = todo.pop() {
-            deepest = deepest.max(depth);
-            let mut built = Pair::default();
-            for k in 0..2 {
-                let child = &self.bvh.nodes[first + k];
-                built.min[k] = child.aabb.min.to_array();
-                built.max[k] = child.aabb.max.to_array();
-                if child.is_leaf() {
-                    let (from, count) = (child.first_index as usize, child.prim_count);
-                    let slot = next_face as usize;
-                    faces[slot..slot + count as usize]
-                        .copy_from_slice(&self.bvh.primitive_indices[from..from + count as usize]);
-                    built.count[k] = count;
-                    built.link[k] = face_base + next_face;
-                    next_face += count;
-                } else {
-                    built.link[k] = pair_base + next_pair;
-                    todo.push((child.first_index as usize, next_pair, depth + 1));
-                    next_pair += 1;
-                }
-            }
-            pairs[local as usize] = built;
-        }
-        deepest
-    }
 }
 
 /// Per-triangle f32 box of recentred f64 corners, widened by `pad` and rounded outward.
@@ -460,34 +266,48 @@ impl TriangleTree {
         Ok(tree)
     }
 
-    /// Copies obvhs's nodes into sibling pairs and the face indices into leaf order (the
-    /// triangles are then prepared in parallel, in that order). Each subtree owns a
-    /// contiguous range of pairs and of face slots, sized by [`subtree_sizes`], so the
-    /// top [`SPLIT_DEPTH`] levels lay out their two subtrees in parallel and each deeper
-    /// subtree is laid out by one loop. The layout depends only on obvhs's tree.
+    /// Copies obvhs's nodes into sibling pairs in depth-first order, and the face indices
+    /// into leaf order (the triangles are then prepared in parallel, in that order).
     fn copy_from(&mut self, bvh: &Bvh2) {
         let root = &bvh.nodes[0];
         self.root_min = root.aabb.min.to_array();
         self.root_max = root.aabb.max.to_array();
+        let push_leaf = |tree: &mut Self, first: u32, count: u32| -> u32 {
+            let slot = tree.faces.len() as u32;
+            tree.faces.extend_from_slice(
+                &bvh.primitive_indices[first as usize..(first + count) as usize],
+            );
+            slot
+        };
         if root.is_leaf() {
             self.root_count = root.prim_count;
-            self.root_link = 0;
-            self.faces = bvh.primitive_indices
-                [root.first_index as usize..(root.first_index + root.prim_count) as usize]
-                .to_vec();
+            self.root_link = push_leaf(self, root.first_index, root.prim_count);
             self.depth = 1;
             return;
         }
-        let sizes = subtree_sizes(bvh);
-        let total = sizes[0];
-        self.pairs = (0..total.pairs)
-            .into_par_iter()
-            .with_min_len(1 << 12)
-            .map(|_| Pair::default())
-            .collect();
-        self.faces = vec![0; total.triangles as usize];
-        let layout = Layout { bvh, sizes: &sizes };
-        self.depth = 1 + layout.fill(0, &mut self.pairs, 0, &mut self.faces, 0, 0);
+        // (obvhs index of the first child, our pair index, depth)
+        self.pairs.reserve(bvh.nodes.len() / 2);
+        self.pairs.push(Pair::default());
+        let mut todo = vec![(root.first_index, 0u32, 1usize)];
+        while let Some((first, pair, depth)) = todo.pop() {
+            self.depth = self.depth.max(depth + 1);
+            let mut built = Pair::default();
+            for k in 0..2 {
+                let node = &bvh.nodes[first as usize + k];
+                built.min[k] = node.aabb.min.to_array();
+                built.max[k] = node.aabb.max.to_array();
+                if node.is_leaf() {
+                    built.count[k] = node.prim_count;
+                    built.link[k] = push_leaf(self, node.first_index, node.prim_count);
+                } else {
+                    let child = self.pairs.len() as u32;
+                    self.pairs.push(Pair::default());
+                    built.link[k] = child;
+                    todo.push((node.first_index, child, depth + 1));
+                }
+            }
+            self.pairs[pair as usize] = built;
+        }
     }
 
     /// Number of triangles.
@@ -884,12 +704,9 @@ mod tests {
     }
 
     #[test]
-    fn a_tree_deeper_than_the_parallel_split_validates_and_matches_brute_force() {
-        // 20,000 triangles: deeper than SPLIT_DEPTH, so its top levels are laid out in
-        // parallel and its subtrees by the loop; the same tree from 1 and 2 threads.
+    fn a_deep_tree_validates_matches_brute_force_and_does_not_depend_on_threads() {
         let (v, f) = soup(20_000, 7);
         let tree = TriangleTree::build(&v, &f).unwrap();
-        assert!(tree.depth() > SPLIT_DEPTH + 1, "depth {}", tree.depth());
         tree.validate().unwrap();
         let single = rayon::ThreadPoolBuilder::new()
             .num_threads(1)
