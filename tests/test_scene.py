@@ -552,3 +552,14 @@ def test_cli_compress_and_info_on_a_scene(scene_file, tmp_path, capsys):
     )
     assert json.loads(capsys.readouterr().out)["budget"] == pytest.approx(0.01)
     assert main(["compress", str(path), "--error", "-1mm", "-o", str(out)]) == 2
+
+
+def test_a_plain_mesh_to_glb_meets_what_compress_meets(tmp_path):
+    """The hand at 0.002 S: compress meets it in 6 passes; a scene's primitive had 4
+    passes and 2 certified ones, and ended unmet."""
+    from meshbits.scene import compress_scene
+
+    path = Path(__file__).parent / "data" / "hand.ply"
+    assert meshbits.compress(meshbits.load_mesh(path), error=0.002, relative=True).met
+    result = compress_scene(path, error=0.002, relative=True, output=tmp_path / "hand.glb")
+    assert result.met, result.message
