@@ -839,17 +839,10 @@ class Search:
             return None
         best = self.best()
         if self.constraint == "error":
-            # Before any result meets the budget, a plan that built levels but found none
-            # promising plans again from them (on a large original each B gets one level
-            # per plan, and the search would end unmet).
-            for _ in range(LEVEL_TRIES):
-                built = len(self.levels)
-                ranked = sorted(self._error_candidates(), key=lambda c: (c.size_bits, c.error))
-                if best is not None:
-                    limit = (1 - STOP_GAIN) * best.measured_size_bits
-                    ranked = [c for c in ranked if c.size_bits < limit]
-                if ranked or best is not None or len(self.levels) == built:
-                    break
+            ranked = sorted(self._error_candidates(), key=lambda c: (c.size_bits, c.error))
+            if best is not None:
+                limit = (1 - STOP_GAIN) * best.measured_size_bits
+                ranked = [c for c in ranked if c.size_bits < limit]
         else:
             ranked = sorted(self._size_candidates(), key=lambda c: (c.error, c.size_bits))
             if best is not None:
