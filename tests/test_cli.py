@@ -191,3 +191,20 @@ def test_an_obj_output_reports_the_bytes_of_its_file(tmp_path, capsys):
     assert f"wrote {path}: {path.stat().st_size} bytes (obj" in out, out
     assert main([*argv, "-o", str(path), "--quiet", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["file_bytes"] == path.stat().st_size
+
+
+def test_info_reports_non_finite_positions_and_refuses_bad_indices(tmp_path, capsys):
+    """info exited 0 on both files without a word."""
+    header = (
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    nan = tmp_path / "nan.ply"
+    nan.write_text(header + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n")
+    info = run_json(capsys, "info", str(nan))
+    assert info["meshes"][0]["primitives"][0]["non_finite_positions"] == 1
+    bad = tmp_path / "bad.ply"
+    bad.write_text(header + "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")
+    assert main(["info", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "out of range" in err and err.count("\n") == 1

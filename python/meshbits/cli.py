@@ -751,6 +751,8 @@ def _run_info(args: argparse.Namespace) -> int:
         for prim in mesh["primitives"]:
             attributes = ", ".join(f"{k} ({v})" for k, v in prim["attributes"].items())
             extras = f"; {', '.join(prim['extensions'])}" if prim["extensions"] else ""
+            if prim.get("non_finite_positions"):
+                extras += f"; {prim['non_finite_positions']} positions NaN or infinite"
             print(
                 f"  mesh {mesh['mesh']} {mesh['name'] or ''} primitive {prim['primitive']}: "
                 f"{prim['vertices']} vertices, {prim['faces']} faces; {attributes}{extras}"

@@ -1318,6 +1318,15 @@ def scene_info(path: str | Path) -> dict[str, Any]:
                 }
             )
         meshes.append({"mesh": m, "name": mesh.get("name"), "primitives": prims})
+    try:
+        decoded = document.triangle_primitives()
+    except MeshFileError as error:
+        raise MeshFileError(f"{path}: {error}") from error
+    for data in decoded:
+        finite = np.isfinite(data.positions).all(axis=1)
+        meshes[data.mesh]["primitives"][data.index]["non_finite_positions"] = int(
+            len(finite) - finite.sum()
+        )
     image_views = {
         im["bufferView"] for im in j.get("images", []) if im.get("bufferView") is not None
     }
