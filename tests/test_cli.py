@@ -208,3 +208,16 @@ def test_info_reports_non_finite_positions_and_refuses_bad_indices(tmp_path, cap
     assert main(["info", str(bad)]) == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "out of range" in err and err.count("\n") == 1
+
+
+def test_out_of_range_indices_to_a_scene_output_name_the_file(tmp_path, capsys):
+    """The message named "meshes[0].primitives[0]" of a PLY file, not the file."""
+    bad = tmp_path / "bad.ply"
+    bad.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"
+    )
+    assert main(["compress", str(bad), "--error", "0.01", "-o", str(tmp_path / "o.glb")]) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "out of range" in err and err.count("\n") == 1

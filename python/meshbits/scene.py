@@ -769,7 +769,13 @@ def compress_scene(
     instances = document.mesh_instances()
     jobs: list[_Job] = []
     kept: list[PrimitiveData] = []
-    for data in document.triangle_primitives():
+    try:
+        primitives = document.triangle_primitives()
+    except MeshFileError as error:
+        if isinstance(source, Document):
+            raise
+        raise MeshFileError(f"{source}: {error}") from error
+    for data in primitives:
         if data.morph:
             kept.append(data)
             continue
