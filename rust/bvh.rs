@@ -680,26 +680,33 @@ mod tests {
             let tree = TriangleTree::build(&v, &f).unwrap();
             tree.validate().unwrap_or_else(|e| panic!("n = {n}: {e}"));
             assert_eq!(tree.len(), n);
-            let mut s = 99 + n as u64;
-            let mut stack = tree.stack();
-            for _ in 0..20 {
-                let p = DVec3::new(
-                    lcg(&mut s) * 1.4 - 0.2,
-                    lcg(&mut s) * 1.4 - 0.2,
-                    lcg(&mut s) * 1.4 - 0.2,
-                );
-                let hit = tree
-                    .nearest_local(p - tree.centre(), u32::MAX, 0.0, &mut stack)
-                    .unwrap();
-                let (d2, _) = brute(&v, &f, p);
-                // Same triangles, recentred: equal up to rounding.
-                assert!(
-                    (hit.d2.sqrt() - d2.sqrt()).abs() < 1e-14,
-                    "n = {n}: {} vs {}",
-                    hit.d2,
-                    d2
-                );
-            }
+            assert_matches_brute_force(&tree, &v, &f, 99 + n as u64, 20);
+        }
+    }
+
+    /// Nearest distances of `queries` seeded points around the unit cube equal brute
+    /// force's (the same triangles, recentred: equal up to rounding).
+    fn assert_matches_brute_force(
+        tree: &TriangleTree,
+        v: &[[f64; 3]],
+        f: &[[u32; 3]],
+        seed: u64,
+        queries: usize,
+    ) {
+        let mut s = seed;
+        let mut stack = tree.stack();
+        for _ in 0..queries {
+            let p = DVec3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s)) * 1.4 - 0.2;
+            let hit = tree
+                .nearest_local(p - tree.centre(), u32::MAX, 0.0, &mut stack)
+                .unwrap();
+            let (d2, _) = brute(v, f, p);
+            assert!(
+                (hit.d2.sqrt() - d2.sqrt()).abs() < 1e-14,
+                "{} faces: {} vs {d2}",
+                f.len(),
+                hit.d2
+            );
         }
     }
 
@@ -715,20 +722,7 @@ mod tests {
             .install(|| TriangleTree::build(&v, &f).unwrap());
         assert_eq!(single.faces, tree.faces);
         assert_eq!(single.depth, tree.depth);
-        let mut s = 5u64;
-        let mut stack = tree.stack();
-        for _ in 0..50 {
-            let p = DVec3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s)) * 1.4 - 0.2;
-            let hit = tree
-                .nearest_local(p - tree.centre(), u32::MAX, 0.0, &mut stack)
-                .unwrap();
-            let (d2, _) = brute(&v, &f, p);
-            assert!(
-                (hit.d2.sqrt() - d2.sqrt()).abs() < 1e-14,
-                "{} vs {d2}",
-                hit.d2
-            );
-        }
+        assert_matches_brute_force(&tree, &v, &f, 5, 50);
     }
 
     #[test]
