@@ -805,7 +805,7 @@ def compress_scene(
             outcomes.append(outcome)
             say(
                 f"mesh {job.data.mesh} primitive {job.data.index}: B = {outcome[0].bits}, "
-                f"V = {outcome[2].vertex_count}, {outcome[1].size_bits // 8} bytes, error "
+                f"V = {len(outcome[1].vertices)}, {outcome[1].size_bits // 8} bytes, error "
                 f"{outcome[0].measured_error * job.scale:.4g} (world units)"
             )
         return outcomes
