@@ -563,3 +563,23 @@ def test_a_plain_mesh_to_glb_meets_what_compress_meets(tmp_path):
     assert meshbits.compress(meshbits.load_mesh(path), error=0.002, relative=True).met
     result = compress_scene(path, error=0.002, relative=True, output=tmp_path / "hand.glb")
     assert result.met, result.message
+
+
+def test_the_progress_lines_give_the_vertex_counts_of_the_summary(tmp_path):
+    """The pass lines gave the simplified level's count (505), the summary the encoded
+    one (510)."""
+    import re
+
+    from meshbits.scene import compress_scene
+
+    lines: list[str] = []
+    path = Path(__file__).parent / "data" / "bunny_res3.ply"
+    result = compress_scene(
+        path,
+        error=0.005,
+        relative=True,
+        output=tmp_path / "b.glb",
+        progress=lambda p: lines.append(str(p)),
+    )
+    said = [int(m.group(1)) for line in lines for m in [re.search(r"V = (\d+),", line)] if m]
+    assert said == [p.vertices for p in result.primitives], lines
