@@ -221,3 +221,11 @@ def test_out_of_range_indices_to_a_scene_output_name_the_file(tmp_path, capsys):
     assert main(["compress", str(bad), "--error", "0.01", "-o", str(tmp_path / "o.glb")]) == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "out of range" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("option", [["--codec", "meshopt"], ["--normal-tolerance", "2"]])
+def test_scene_options_are_refused_for_a_single_mesh_output(tmp_path, capsys, option):
+    """--normal-tolerance was accepted for .drc and did nothing."""
+    argv = ["compress", str(DATA / "bunny_res4.ply"), "--error", "0.01", *option]
+    assert main([*argv, "-o", str(tmp_path / "x.drc")]) == 2
+    assert "applies to .glb and .gltf outputs" in capsys.readouterr().err

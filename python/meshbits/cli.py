@@ -244,7 +244,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     args.lods, args.alpha, args.connectivity_bits = None, None, None
     args.max_iterations, args.samples, args.seed = 6, None, 0
     args.estimator, args.quiet, args.certify = "circumsphere", args.json, True
-    args.method, args.codec, args.normal_tolerance = "auto", "draco", 1.0
+    args.method, args.codec, args.normal_tolerance = "auto", "draco", None
     if not args.json:
         print(
             f"meshbits demo: compressing {args.mesh.name} (Spot by Keenan Crane, public "
@@ -305,7 +305,7 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--normal-tolerance",
         type=_positive_number,
-        default=1.0,
+        default=None,
         help="for .glb/.gltf: largest angle in degrees between a normal and its quantized "
         "value (default 1)",
     )
@@ -375,6 +375,8 @@ def _run_compress(args: argparse.Namespace) -> int:
         return _run_compress_scene(args)
     if args.codec != "draco":
         raise UserError("--codec applies to .glb and .gltf outputs")
+    if args.normal_tolerance is not None:
+        raise UserError("--normal-tolerance applies to .glb and .gltf outputs")
     if suffix not in _FORMATS and suffix not in _TRIMESH_FORMATS:
         raise UserError(
             f"cannot write {output}: use .glb, .gltf, .drc, .ply, " + ", ".join(_TRIMESH_FORMATS)
@@ -476,7 +478,7 @@ def _run_compress(args: argparse.Namespace) -> int:
 
 def _run_compress_scene(args: argparse.Namespace) -> int:
     """compress to .glb / .gltf: the whole scene, primitive by primitive."""
-    from .scene import compress_scene
+    from .scene import NORMAL_TOLERANCE_DEGREES, compress_scene
 
     if args.vertices is not None:
         raise UserError("a scene takes --error or --size, not --vertices")
@@ -510,7 +512,9 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         size=None if args.size is None else parse_size(args.size),
         relative=args.relative,
         codec=args.codec,
-        normal_tolerance=args.normal_tolerance,
+        normal_tolerance=(
+            NORMAL_TOLERANCE_DEGREES if args.normal_tolerance is None else args.normal_tolerance
+        ),
         output=args.output,
         seed=args.seed,
         certify=args.certify,
