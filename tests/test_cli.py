@@ -229,3 +229,13 @@ def test_scene_options_are_refused_for_a_single_mesh_output(tmp_path, capsys, op
     argv = ["compress", str(DATA / "bunny_res4.ply"), "--error", "0.01", *option]
     assert main([*argv, "-o", str(tmp_path / "x.drc")]) == 2
     assert "applies to .glb and .gltf outputs" in capsys.readouterr().err
+
+
+def test_with_json_a_failure_is_a_json_object_on_stdout_too(tmp_path, capsys):
+    """A pipeline reading stdout got nothing when a file was refused."""
+    path = tmp_path / "broken.ply"
+    path.write_bytes(b"this is not a mesh")
+    assert main(["k", str(path), "--json"]) == 2
+    captured = capsys.readouterr()
+    failure = json.loads(captured.out)
+    assert failure["exit_code"] == 2 and failure["error"] in captured.err

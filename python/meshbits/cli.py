@@ -10,6 +10,9 @@ Every subcommand prints a short human-readable report, or one JSON object with
   traceback);
 - 130: interrupted (Ctrl-C).
 
+With ``--json`` a failure (2, 3, 130) is also one JSON object on stdout,
+``{"error": message, "exit_code": code}``.
+
 Arguments and output folders are checked before any file is read.
 """
 
@@ -1415,11 +1418,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.run(args))
     except KeyboardInterrupt:
         print(f"{where}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return _failed(args, "interrupted", EXIT_INTERRUPTED)
     except (UserError, MeshbitsError, OSError) as err:
         # Refused input, an unusable file, or a file system that refused a read or write.
         print(f"{where}: error: {_one_line(err)}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        return _failed(args, _one_line(err), EXIT_BAD_INPUT)
     except Exception as err:
         if args.debug:
             traceback.print_exc()
@@ -1429,7 +1432,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             + ("" if args.debug else "; rerun with --debug for the traceback"),
             file=sys.stderr,
         )
-        return EXIT_INTERNAL
+        return _failed(
+            args, f"internal error: {type(err).__name__}: {_one_line(err)}", EXIT_INTERNAL
+        )
+
+
+def _failed(args: argparse.Namespace, message: str, code: int) -> int:
+    """With ``--json``, a failure is a JSON object on stdout too (``error``, ``exit_code``),
+    so that a pipeline reading stdout gets a document either way; returns ``code``."""
+    if getattr(args, "json", False):
+        _print_json({"error": message, "exit_code": code})
+    return code
 
 
 def _one_line(err: BaseException) -> str:
