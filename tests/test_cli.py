@@ -239,3 +239,17 @@ def test_with_json_a_failure_is_a_json_object_on_stdout_too(tmp_path, capsys):
     captured = capsys.readouterr()
     failure = json.loads(captured.out)
     assert failure["exit_code"] == 2 and failure["error"] in captured.err
+
+
+def test_k_headlines_the_welded_vertex_count_of_a_soup(tmp_path, capsys):
+    """An STL repeats a vertex per triangle: the headline gave 2,844 vertices for 453."""
+    import numpy as np
+    import trimesh
+
+    mesh = trimesh.load(DATA / "bunny_res4.ply", process=False)
+    corners = np.asarray(mesh.vertices)[np.asarray(mesh.faces)].reshape(-1, 3)
+    soup = trimesh.Trimesh(corners, np.arange(len(corners)).reshape(-1, 3), process=False)
+    path = tmp_path / "soup.stl"
+    soup.export(path)
+    assert main(["k", str(path)]) == 0
+    assert f"{len(corners)} vertices (453 once welded), 948 faces" in capsys.readouterr().out

@@ -202,7 +202,13 @@ def _run_k(args: argparse.Namespace) -> int:
         _print_json(report)
         return EXIT_OK
     _print_table(
-        f"{report['mesh']}: {report['vertices']} vertices, {report['faces']} faces",
+        f"{report['mesh']}: {report['vertices']} vertices"
+        + (
+            f" ({report['vertices'] - report['merged_vertices']} once welded)"
+            if report["merged_vertices"]
+            else ""
+        )
+        + f", {report['faces']} faces",
         [
             ("K (grid, /S)", report["k"]),
             ("K (area, /sqrt(A))", report["k_area"]),
