@@ -253,3 +253,12 @@ def test_k_headlines_the_welded_vertex_count_of_a_soup(tmp_path, capsys):
     soup.export(path)
     assert main(["k", str(path)]) == 0
     assert f"{len(corners)} vertices (453 once welded), 948 faces" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command", [["k"], ["info"], ["compress", "--error", "0.01"]])
+def test_an_empty_glb_is_called_empty_by_every_command(tmp_path, capsys, command):
+    """k said "the file is empty", info and compress "not a GLB file"."""
+    path = tmp_path / "empty.glb"
+    path.write_bytes(b"")
+    assert main([command[0], str(path), *command[1:]]) == 2
+    assert "the file is empty" in capsys.readouterr().err

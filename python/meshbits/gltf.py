@@ -473,6 +473,8 @@ def load_document(path: str | Path) -> Document:
 
 
 def _from_glb(data: bytes, base: Path | None) -> Document:
+    if not data:
+        raise MeshFileError("the file is empty")
     if data[:4] != GLB_MAGIC or len(data) < 20:
         raise MeshFileError("not a GLB file (no glTF header)")
     version, length = struct.unpack("<II", data[4:12])
