@@ -1,8 +1,9 @@
 """meshbits batch on one machine: serial, the local process pool and a Dask LocalCluster.
 
 The library: ``--count`` meshes (200 by default) made from ten small meshes of
-../shared/meshes (453 to 15,982 vertices), each copy rotated by a random rotation and
-scaled by a random factor in [0.5, 20] (seeded: ``--seed``), written as binary PLY under
+../shared/meshes (453 to 15,982 vertices; docs/benchmarks.md lists them), each copy
+rotated by a random rotation and scaled by a random factor in [0.5, 20] (seeded:
+``--seed``), written as binary PLY under
 ``benches/out/batch/library/``, in ``--rounds`` parts (4 by default) of one sub-folder per
 source mesh. Every configuration compresses all of them to a relative Hausdorff error of
 0.005 (Draco), into fresh output folders, with one :func:`meshbits.batch` call per part

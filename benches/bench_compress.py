@@ -4,8 +4,8 @@ For each mesh and budget, prints the chosen B and V, the measured error and size
 number of passes and the seconds spent per phase (K, simplification, Draco encoding with
 decoding, Hausdorff), then the sizes of one quantized mesh in the three writers (Draco,
 glTF with KHR_mesh_quantization, quantized PLY) next to the paper's F. Meshes: the
-bundled Spot, tests/data, and ../shared/meshes (the 871k-face Stanford dragon) when
-present.
+bundled Spot, tests/data, and ../shared/meshes (the 871k-face Stanford dragon;
+docs/benchmarks.md lists the meshes) when present.
 
     python benches/bench_compress.py
 """

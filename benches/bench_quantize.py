@@ -13,7 +13,8 @@ unreferenced vertices, return the new mesh and the old->new vertex map.
   degeneracy test is geometric, so its face count may differ (shown in the table).
 
 Meshes: icospheres of about 20k to 5M faces, ``tests/data`` and, when present,
-``../shared/meshes`` next to the repository. Run: ``python benches/bench_quantize.py``
+``../shared/meshes`` next to the repository (listed in docs/benchmarks.md).
+Run: ``python benches/bench_quantize.py``
 (``--quick`` skips the 5M-face sphere and the trimesh route on it).
 """
 

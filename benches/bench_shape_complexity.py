@@ -2,7 +2,8 @@
 
 Prints one table; every ratio comes from this one run (best of ``--repeat`` timings).
 Meshes: icospheres from 20k to 5M faces, two 5M spheres side by side (10M faces), and
-the real meshes in tests/data and ../shared/meshes when present.
+the real meshes in tests/data and ../shared/meshes when present (listed in
+docs/benchmarks.md).
 
     python benches/bench_shape_complexity.py [--max-faces 11000000] [--repeat 3]
 """

@@ -227,10 +227,10 @@ class Oracle:
 
     def tight_cell(self, cell: dict) -> float:
         """:meth:`tight` of a cell, computed once (infinite when it did not converge)."""
-        if "tight2" not in cell:
-            cell["tight2"] = self.tight(self._decoded(cell), cell["error"])
+        if "tight_upper" not in cell:
+            cell["tight_upper"] = self.tight(self._decoded(cell), cell["error"])
             self._save()
-        return math.inf if cell["tight2"] is None else cell["tight2"]
+        return math.inf if cell["tight_upper"] is None else cell["tight_upper"]
 
     def best_for_size_certified(self, limit: float) -> dict | None:
         """The cell of least certified error within the size. A cell's sampled error is
@@ -554,10 +554,9 @@ def dragon_floor(mesh: tuple, result: meshbits.CompressResult) -> None:
         return out
 
     reference = timed("BVH and samples", lambda: meshbits.Reference(original, samples=count))
-    level = result.iterations[-1]
     timed(
         "one simplification",
-        lambda: meshbits.simplify(original, method="meshopt", vertices=level.vertices),
+        lambda: meshbits.simplify(original, method="meshopt", vertices=len(result.vertices)),
     )
     timed(
         "sampled measurement",

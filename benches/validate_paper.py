@@ -6,8 +6,8 @@ figures (docs/validation_*.png).
 
 Every number on the page comes from this run: the script writes the page. Seeded: the same
 run gives the same page on any thread count. Real meshes are read from ../shared/meshes
-(relative to the repository root) when present, tests/data otherwise; missing ones are
-skipped and the page says so.
+(relative to the repository root; docs/benchmarks.md lists them) when present,
+tests/data otherwise; missing ones are skipped and the page says so.
 
 The experiments (issue 7):
 

@@ -425,17 +425,17 @@ def _run_compress(args: argparse.Namespace) -> int:
         certify=args.certify,
         progress=report,
     )
-    written_by_trimesh = None
+    file_bytes = None
     if output is not None:
         if suffix in _FORMATS:
             result.write(output)
         else:
             save_mesh(output, result.vertices, result.faces)
-            written_by_trimesh = output.stat().st_size
+        file_bytes = output.stat().st_size
     payload = {
         "mesh": str(args.mesh),
         "output": str(output) if output else None,
-        "file_bytes": output.stat().st_size if output else None,
+        "file_bytes": file_bytes,
         "budget_text": _budget_text(args),
         **result.to_dict(),
     }
@@ -477,9 +477,9 @@ def _run_compress(args: argparse.Namespace) -> int:
             ],
         )
         print(result.message)
-        if written_by_trimesh is not None:
+        if suffix in _TRIMESH_FORMATS and file_bytes is not None:
             print(
-                f"wrote {output}: {written_by_trimesh} bytes ({suffix[1:]}, through trimesh; "
+                f"wrote {output}: {file_bytes} bytes ({suffix[1:]}, through trimesh; "
                 f"the bytes above are the {result.format} encoding the search sized)"
             )
     return EXIT_OK if result.met else EXIT_UNMET

@@ -769,12 +769,8 @@ def compress_scene(
     instances = document.mesh_instances()
     jobs: list[_Job] = []
     kept: list[PrimitiveData] = []
-    try:
-        primitives = document.triangle_primitives()
-    except MeshFileError as error:
-        if isinstance(source, Document):
-            raise
-        raise MeshFileError(f"{source}: {error}") from error
+    where = "" if isinstance(source, Document) else f"{source}: "
+    primitives = _decoded_primitives(document, where)
     for data in primitives:
         if data.morph:
             kept.append(data)
@@ -785,7 +781,6 @@ def compress_scene(
         nodes = instances.get(data.mesh, [])
         scale = max((largest_scale(m) for _, m in nodes), default=1.0) or 1.0
         mesh_name = document.json["meshes"][data.mesh].get("name")
-        where = "" if isinstance(source, Document) else f"{source}: "
         finite_or_fail(
             f"{where}mesh {data.mesh} ({mesh_name or 'unnamed'}), primitive {data.index}: POSITION",
             data.positions,
@@ -794,7 +789,7 @@ def compress_scene(
         jobs.append(_Job(data, mesh_name, len(nodes), scale, bits))
     if not jobs:
         raise MeshFileError("the scene has no triangle primitive to compress")
-    world_size = _world_size(document, instances)
+    world_size = _world_size(primitives, instances)
     if given[0] == "error" and relative:
         budget *= world_size
 
@@ -946,10 +941,23 @@ def _file_bytes(path: Path, document: Document) -> int:
     return total
 
 
-def _world_size(document: Document, instances: dict[int, list[tuple[int, np.ndarray]]]) -> float:
+def _decoded_primitives(document: Document, where: str) -> list[PrimitiveData]:
+    """``document.triangle_primitives()``, a file's errors prefixed with ``where`` (its
+    path and a colon, or nothing)."""
+    try:
+        return document.triangle_primitives()
+    except MeshFileError as error:
+        if not where:
+            raise
+        raise MeshFileError(f"{where}{error}") from error
+
+
+def _world_size(
+    primitives: list[PrimitiveData], instances: dict[int, list[tuple[int, np.ndarray]]]
+) -> float:
     """Largest side of the scene's world bounding box."""
     lows, highs = [], []
-    for data in document.triangle_primitives():
+    for data in primitives:
         for _, matrix in instances.get(data.mesh, [(-1, np.eye(4))]):
             world = data.positions @ matrix[:3, :3].T + matrix[:3, 3]
             if len(world):
@@ -1324,11 +1332,7 @@ def scene_info(path: str | Path) -> dict[str, Any]:
                 }
             )
         meshes.append({"mesh": m, "name": mesh.get("name"), "primitives": prims})
-    try:
-        decoded = document.triangle_primitives()
-    except MeshFileError as error:
-        raise MeshFileError(f"{path}: {error}") from error
-    for data in decoded:
+    for data in _decoded_primitives(document, f"{path}: "):
         finite = np.isfinite(data.positions).all(axis=1)
         meshes[data.mesh]["primitives"][data.index]["non_finite_positions"] = int(
             len(finite) - finite.sum()

@@ -442,8 +442,7 @@ class Search:
         The paper's size model, for the first plan.
     method : str or None
         ``"meshopt"``, ``"fast-simplification"``, or ``"auto"`` (both compete, see
-        :meth:`simplifier_methods`); None with
-        ``simplifier`` or ``lods``.
+        :meth:`simplifier_methods`); None with ``simplifier`` or ``lods``.
     simplifier : callable, optional
         ``simplifier(vertices, faces, target_vertices) -> (vertices, faces)``.
     lods : sequence of meshes, optional
