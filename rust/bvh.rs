@@ -30,7 +30,12 @@
 //!
 //! **Early exit.** With `stop_below_d2 > 0`, the search returns as soon as it has found
 //! a triangle with squared distance `< stop_below_d2`; the answer is then an upper bound
-//! on the true distance, not the minimum. The max-only Hausdorff uses it.
+//! on the true distance, not the minimum. The max-only Hausdorff uses it. Such a search
+//! first looks in the subtree [`RESTART_LEVELS`] levels above the hint's leaf (every pair
+//! knows its parent, every triangle slot its leaf's pair), and goes to the root only when
+//! that subtree holds no triangle within the stop distance: on the benchmark pair (1.31M
+//! faces against their 482k-face clustered copy), half the max-only queries end at the
+//! hint and the others descended about 21 pairs from the root.
 
 use std::time::Duration;
 
@@ -46,6 +51,10 @@ use crate::error::{MAX_EXTENT, MeshError, check_finite, check_indices};
 
 /// Relative widening of every triangle box before the f32 conversion (`2⁻⁴⁰`).
 const BOX_PAD: f64 = 1.0 / (1u64 << 40) as f64;
+
+/// Levels above the hint's leaf where an early-exit search starts before trying the root
+/// (a subtree of up to `2^(RESTART_LEVELS + 1)` triangles).
+const RESTART_LEVELS: usize = 6;
 
 /// Queries per parallel work unit in [`TriangleTree::query`]; the hint carries over
 /// inside a unit.
@@ -136,6 +145,10 @@ pub struct TriangleTree {
     root_max: [f32; 3],
     triangles: Vec<PreparedTriangle>,
     faces: Vec<u32>,
+    /// Per pair, the pair holding it as a child (`u32::MAX` for the root pair).
+    parent: Vec<u32>,
+    /// Per triangle slot, the pair holding its leaf (`u32::MAX` when the root is a leaf).
+    leaf_pair: Vec<u32>,
     depth: usize,
     vertex_count: usize,
 }
@@ -247,6 +260,8 @@ impl TriangleTree {
             root_max: [0.0; 3],
             triangles: Vec::new(),
             faces: Vec::with_capacity(faces.len()),
+            parent: Vec::new(),
+            leaf_pair: Vec::with_capacity(faces.len()),
             depth: 0,
             vertex_count: vertices.len(),
         };
@@ -272,22 +287,25 @@ impl TriangleTree {
         let root = &bvh.nodes[0];
         self.root_min = root.aabb.min.to_array();
         self.root_max = root.aabb.max.to_array();
-        let push_leaf = |tree: &mut Self, first: u32, count: u32| -> u32 {
+        let push_leaf = |tree: &mut Self, first: u32, count: u32, pair: u32| -> u32 {
             let slot = tree.faces.len() as u32;
             tree.faces.extend_from_slice(
                 &bvh.primitive_indices[first as usize..(first + count) as usize],
             );
+            tree.leaf_pair.resize(tree.faces.len(), pair);
             slot
         };
         if root.is_leaf() {
             self.root_count = root.prim_count;
-            self.root_link = push_leaf(self, root.first_index, root.prim_count);
+            self.root_link = push_leaf(self, root.first_index, root.prim_count, u32::MAX);
             self.depth = 1;
             return;
         }
         // (obvhs index of the first child, our pair index, depth)
         self.pairs.reserve(bvh.nodes.len() / 2);
+        self.parent.reserve(bvh.nodes.len() / 2);
         self.pairs.push(Pair::default());
+        self.parent.push(u32::MAX);
         let mut todo = vec![(root.first_index, 0u32, 1usize)];
         while let Some((first, pair, depth)) = todo.pop() {
             self.depth = self.depth.max(depth + 1);
@@ -298,10 +316,11 @@ impl TriangleTree {
                 built.max[k] = node.aabb.max.to_array();
                 if node.is_leaf() {
                     built.count[k] = node.prim_count;
-                    built.link[k] = push_leaf(self, node.first_index, node.prim_count);
+                    built.link[k] = push_leaf(self, node.first_index, node.prim_count, pair);
                 } else {
                     let child = self.pairs.len() as u32;
                     self.pairs.push(Pair::default());
+                    self.parent.push(pair);
                     built.link[k] = child;
                     todo.push((node.first_index, child, depth + 1));
                 }
@@ -414,8 +433,38 @@ impl TriangleTree {
             return Some(best);
         }
         let stack = &mut stack.0;
+        if stop_below_d2 > 0.0 && (hint as usize) < self.triangles.len() {
+            // The hint is the previous query's answer, and this query is near it: the
+            // subtree a few levels above the hint's leaf likely holds a triangle within
+            // the stop distance, found without descending from the root.
+            let mut start = self.leaf_pair[hint as usize];
+            for _ in 0..RESTART_LEVELS {
+                match self.parent[start as usize] {
+                    u32::MAX => break,
+                    up => start = up,
+                }
+            }
+            if start != self.root_link && self.descend(p, start, stop_below_d2, &mut best, stack) {
+                return Some(best);
+            }
+        }
+        self.descend(p, self.root_link, stop_below_d2, &mut best, stack);
+        Some(best)
+    }
+
+    /// Nearest-first search of the subtree under pair `start`, improving `best`; true when
+    /// it stopped early at a triangle closer than `stop_below_d2` (squared length).
+    #[inline(always)]
+    fn descend(
+        &self,
+        p: DVec3,
+        start: u32,
+        stop_below_d2: f64,
+        best: &mut Nearest,
+        stack: &mut Vec<Pending>,
+    ) -> bool {
         stack.clear();
-        let mut current = self.root_link;
+        let mut current = start;
         'descend: loop {
             let pair = &self.pairs[current as usize];
             let [d0, d1] = pair.distances_squared(p);
@@ -436,9 +485,9 @@ impl TriangleTree {
                     current = pair.link[near];
                     continue 'descend;
                 }
-                self.test_leaf(p, pair.link[near], pair.count[near], &mut best);
+                self.test_leaf(p, pair.link[near], pair.count[near], best);
                 if best.d2 < stop_below_d2 {
-                    return Some(best);
+                    return true;
                 }
             }
             while let Some(next) = stack.pop() {
@@ -449,12 +498,12 @@ impl TriangleTree {
                     current = next.link;
                     continue 'descend;
                 }
-                self.test_leaf(p, next.link, next.count, &mut best);
+                self.test_leaf(p, next.link, next.count, best);
                 if best.d2 < stop_below_d2 {
-                    return Some(best);
+                    return true;
                 }
             }
-            return Some(best);
+            return false;
         }
     }
 
@@ -529,8 +578,19 @@ impl TriangleTree {
     /// box lies inside its parent's box, and the face map is a permutation.
     pub fn validate(&self) -> Result<(), String> {
         let n = self.triangles.len();
-        if self.faces.len() != n {
-            return Err(format!("{} faces for {n} triangles", self.faces.len()));
+        if self.faces.len() != n || self.leaf_pair.len() != n {
+            return Err(format!(
+                "{} faces and {} leaf links for {n} triangles",
+                self.faces.len(),
+                self.leaf_pair.len()
+            ));
+        }
+        if self.parent.len() != self.pairs.len() {
+            return Err(format!(
+                "{} parent links for {} pairs",
+                self.parent.len(),
+                self.pairs.len()
+            ));
         }
         let mut seen_face = vec![false; n];
         for &f in &self.faces {
@@ -575,7 +635,13 @@ impl TriangleTree {
                 &self.root_min,
                 &self.root_max,
             )?;
+            if self.leaf_pair.iter().any(|&p| p != u32::MAX) {
+                return Err("a slot of the root leaf linked to a pair".into());
+            }
         } else {
+            if self.parent.get(self.root_link as usize) != Some(&u32::MAX) {
+                return Err("the root pair has a parent".into());
+            }
             let mut seen_pair = vec![false; self.pairs.len()];
             let mut todo = vec![(self.root_link, self.root_min, self.root_max)];
             while let Some((index, pmin, pmax)) = todo.pop() {
@@ -595,10 +661,20 @@ impl TriangleTree {
                     if !corners.iter().all(|&c| inside(&pmin, &pmax, c)) {
                         return Err(format!("pair {index} child {k} outside its parent"));
                     }
-                    if pair.count[k] > 0 {
-                        check_leaf(pair.link[k], pair.count[k], &min, &max)?;
+                    let (link, count) = (pair.link[k], pair.count[k]);
+                    if count > 0 {
+                        check_leaf(link, count, &min, &max)?;
+                        let slots = link as usize..(link + count) as usize;
+                        if self.leaf_pair[slots].iter().any(|&p| p != index) {
+                            return Err(format!(
+                                "a slot of leaf {link} not linked to pair {index}"
+                            ));
+                        }
                     } else {
-                        todo.push((pair.link[k], min, max));
+                        if self.parent.get(link as usize) != Some(&index) {
+                            return Err(format!("pair {link} not linked to its parent {index}"));
+                        }
+                        todo.push((link, min, max));
                     }
                 }
             }
@@ -741,6 +817,43 @@ mod tests {
             .unwrap();
         assert_eq!(early.slot, 17);
         assert!(early.d2 >= exact.d2);
+    }
+
+    /// An early-exit search along a path of nearby queries, each hinted by the previous
+    /// answer (so that it starts in the hint's subtree): below the stop distance it returns
+    /// a triangle within it, at its true distance; otherwise the exact nearest.
+    #[test]
+    fn early_exit_from_the_hints_subtree_matches_brute_force() {
+        let (v, f) = soup(20_000, 11);
+        let tree = TriangleTree::build(&v, &f).unwrap();
+        let mut stack = tree.stack();
+        let mut hint = u32::MAX;
+        let (mut early, mut exact_answers) = (0, 0);
+        for step in 0..2_000 {
+            let t = step as f64 / 2_000.0;
+            let p = DVec3::new(t, 0.5 + 0.3 * (7.0 * t).sin(), 0.5 + 0.3 * (5.0 * t).cos());
+            let (exact, _) = brute(&v, &f, p);
+            let stop = 0.01 * 0.01;
+            let hit = tree
+                .nearest_local(p - tree.centre(), hint, stop, &mut stack)
+                .unwrap();
+            let face = f[hit.face as usize];
+            let at = |i: u32| DVec3::from_array(v[i as usize]);
+            let (_, true_d2) = closest_point_on_triangle(p, at(face[0]), at(face[1]), at(face[2]));
+            assert!((hit.d2 - true_d2).abs() <= 1e-12 * (1.0 + true_d2));
+            if exact < stop {
+                assert!(hit.d2 < stop, "step {step}: {} not below the stop", hit.d2);
+                early += 1;
+            } else {
+                assert!((hit.d2.sqrt() - exact.sqrt()).abs() < 1e-14, "step {step}");
+                exact_answers += 1;
+            }
+            hint = hit.slot;
+        }
+        assert!(
+            early > 100 && exact_answers > 100,
+            "{early} early, {exact_answers} exact"
+        );
     }
 
     #[test]
