@@ -151,6 +151,8 @@ pub struct TriangleTree {
     leaf_pair: Vec<u32>,
     depth: usize,
     vertex_count: usize,
+    /// [`crate::reduce::box_overlap`] of the mesh, from the triangles' f32 boxes.
+    box_overlap: f64,
 }
 
 /// Per-triangle f32 box of recentred f64 corners, widened by `pad` and rounded outward.
@@ -164,6 +166,27 @@ fn outward_box(corners: [DVec3; 3], pad: f64) -> Aabb {
         Vec3A::new(down(lo.x), down(lo.y), down(lo.z)),
         Vec3A::new(up(hi.x), up(hi.y), up(hi.z)),
     )
+}
+
+/// [`crate::reduce::box_overlap`] from the triangles' boxes: the sum of their volumes, each
+/// side widened by `1e-3` of the largest side of `extent` (the referenced vertices' box),
+/// over the volume of that box widened alike (dimensionless; summed in fixed chunks, so
+/// the same for any thread count).
+fn overlap_of_boxes(boxes: &[Aabb], extent: DVec3) -> f64 {
+    let pad = 1e-3 * extent.max_element();
+    if boxes.is_empty() || pad.is_nan() || pad <= 0.0 {
+        return 0.0;
+    }
+    let volume = |b: &Aabb| {
+        let side = b.max.as_dvec3() - b.min.as_dvec3() + DVec3::splat(pad);
+        side.x * side.y * side.z
+    };
+    let parts: Vec<f64> = boxes
+        .par_chunks(crate::reduce::SUM_CHUNK)
+        .map(|chunk| chunk.iter().map(volume).sum::<f64>())
+        .collect();
+    let whole = extent + DVec3::splat(pad);
+    parts.iter().sum::<f64>() / (whole.x * whole.y * whole.z)
 }
 
 /// Interleaves the low 21 bits of `x`, `y`, `z` into a 63-bit Morton code.
@@ -264,6 +287,7 @@ impl TriangleTree {
             leaf_pair: Vec::with_capacity(faces.len()),
             depth: 0,
             vertex_count: vertices.len(),
+            box_overlap: overlap_of_boxes(&boxes, hi - lo),
         };
         if !bvh.nodes.is_empty() {
             tree.copy_from(&bvh);
@@ -341,6 +365,14 @@ impl TriangleTree {
     #[must_use]
     pub fn is_empty(&self) -> bool {
         self.triangles.is_empty()
+    }
+
+    /// How many triangle boxes a point of the mesh's box lies in, on average
+    /// ([`crate::reduce::box_overlap`], from the f32 boxes of the tree; dimensionless).
+    #[inline]
+    #[must_use]
+    pub fn box_overlap(&self) -> f64 {
+        self.box_overlap
     }
 
     /// Number of vertices of the mesh it was built from.
@@ -853,6 +885,24 @@ mod tests {
         assert!(
             early > 100 && exact_answers > 100,
             "{early} early, {exact_answers} exact"
+        );
+    }
+
+    /// The overlap measured on the tree's f32 boxes is the f64 one of `reduce`, up to the
+    /// boxes' outward rounding.
+    #[test]
+    fn box_overlap_matches_the_f64_pass() {
+        for (n, seed) in [(1, 1), (37, 2), (5_000, 3)] {
+            let (v, f) = soup(n, seed);
+            let tree = TriangleTree::build(&v, &f).unwrap();
+            let exact = crate::reduce::box_overlap(&v, &f);
+            assert!(exact > 0.0);
+            let rel = (tree.box_overlap() - exact).abs() / exact;
+            assert!(rel < 1e-5, "{n} faces: {} vs {exact}", tree.box_overlap());
+        }
+        assert_eq!(
+            TriangleTree::build(&[[0.0; 3]], &[]).unwrap().box_overlap(),
+            0.0
         );
     }
 

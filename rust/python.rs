@@ -225,6 +225,11 @@ impl PyTriangleTree {
     }
 
     #[getter]
+    fn box_overlap(&self) -> f64 {
+        self.tree.box_overlap()
+    }
+
+    #[getter]
     fn centre(&self) -> [f64; 3] {
         self.tree.centre().to_array()
     }

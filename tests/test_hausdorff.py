@@ -623,6 +623,10 @@ def test_box_overlap_matches_numpy(n_vertices, n_faces, seed, scale):
     expected = _box_overlap_numpy(vertices, faces)
     assert box_overlap(vertices, faces) == pytest.approx(expected, rel=1e-9, abs=1e-300)
     assert box_overlap(vertices, faces.astype(np.uint32)) == box_overlap(vertices, faces)
+    # The BVH measures it on its f32 boxes while it is built: each side rounded outward by
+    # an f32 ulp of the coordinates, at least 1e-3 of the largest side once padded.
+    tree = meshbits._core.build_tree(vertices, faces.astype(np.uint32))
+    assert tree.box_overlap == pytest.approx(expected, rel=1e-3, abs=1e-300)
 
 
 def test_a_threshold_decides_the_certified_bound():

@@ -25,7 +25,7 @@ from .constants import (
     HAUSDORFF_SAMPLES_PER_FACE,
 )
 from .errors import MeshbitsError
-from .mesh import MeshLike, as_mesh, as_points, check_overlap
+from .mesh import MeshLike, as_mesh, as_points, refuse_overlap
 from .results import ArrayResult, Progress, ProgressCallback
 
 __all__ = [
@@ -148,9 +148,9 @@ class ClosestPoints:
         self, mesh_or_vertices: MeshLike, faces: Any = None, *, check: bool = True
     ) -> None:
         vertices, triangles = as_mesh(mesh_or_vertices, faces)
-        if check:
-            check_overlap(vertices, triangles)
         self._tree = _core.build_tree(vertices, triangles)
+        if check:
+            refuse_overlap(self._tree.box_overlap, len(triangles))
 
     @property
     def n_faces(self) -> int:
@@ -478,12 +478,12 @@ def hausdorff(
             progress(Progress("hausdorff", line))
 
     meshes = {"A": as_mesh(a), "B": as_mesh(b)}
-    for name, (vertices, faces) in meshes.items():
-        check_overlap(vertices, faces, f"mesh {name.lower()}")
     start = time.perf_counter()
     sizes = {name: f"{len(faces):,}" for name, (_, faces) in meshes.items()}
     say(f"building the BVHs of A ({sizes['A']} faces) and B ({sizes['B']} faces)")
     trees = dict(zip(meshes, _core.build_trees(list(meshes.values())), strict=True))
+    for name, (_, faces) in meshes.items():
+        refuse_overlap(trees[name].box_overlap, len(faces), f"mesh {name.lower()}")
     say(f"built the BVHs in {time.perf_counter() - start:.2f} s")
     directions = {}
     for source, target in (("A", "B"), ("B", "A")):
@@ -561,14 +561,14 @@ class Reference:
 
     def __init__(self, mesh: MeshLike, *, samples: int | None = None, seed: int = 0) -> None:
         self.vertices, self.faces = as_mesh(mesh)
-        check_overlap(self.vertices, self.faces)
+        self._tree = _core.build_tree(self.vertices, self.faces)
+        refuse_overlap(self._tree.box_overlap, len(self.faces))
         self.seed = _check_seed(seed)
         self.samples = (
             default_samples(len(self.faces))
             if samples is None
             else _check_count(samples, "samples")
         )
-        self._tree = _core.build_tree(self.vertices, self.faces)
         self._sampled = _core.sample_mesh(self.vertices, self.faces, self.samples, self.seed)
         self._quick: tuple[int, _core.SampledMesh] | None = None
 
@@ -592,8 +592,9 @@ class Reference:
         """Sampled Hausdorff distance from the reference (``a``) to ``candidate`` (``b``),
         as :func:`hausdorff` computes it; ``samples`` is the candidate's area sample count
         (default: the reference's). Only the candidate's BVH and samples are built.
-        ``check=False`` skips :func:`check_overlap` of the candidate, for one made from
-        the reference by simplification or quantization (compress's search).
+        ``check=False`` skips the candidate's overlap check (:func:`check_overlap`), for
+        one made from the reference by simplification or quantization (compress's
+        search).
 
         ``threshold`` (length, with a ``tolerance``) asks only whether the distance is
         within it: the refinement settles a piece once its bound is within ``threshold``
@@ -609,9 +610,9 @@ class Reference:
         tolerance = _check_tolerance(tolerance)
         bounds = bounds or tolerance is not None
         vertices, faces = as_mesh(candidate)
-        if check:
-            check_overlap(vertices, faces, "the candidate")
         tree = _core.build_tree(vertices, faces)
+        if check:
+            refuse_overlap(tree.box_overlap, len(faces), "the candidate")
         a_to_b = _core.hausdorff_from_samples(
             self._sampled, tree, statistics, bounds, tolerance, refine_budget, False, threshold
         )
@@ -647,9 +648,9 @@ class Reference:
                 _core.sample_mesh(self.vertices, self.faces, samples, self.seed),
             )
         vertices, faces = as_mesh(candidate)
-        if check:
-            check_overlap(vertices, faces, "the candidate")
         tree = _core.build_tree(vertices, faces)
+        if check:
+            refuse_overlap(tree.box_overlap, len(faces), "the candidate")
         budget = HAUSDORFF_REFINE_BUDGET
         a_to_b = _core.hausdorff_from_samples(
             self._quick[1], tree, False, False, None, budget, False

@@ -25,6 +25,7 @@ __all__ = [
     "check_overlap",
     "compact",
     "referenced",
+    "refuse_overlap",
 ]
 
 
@@ -238,10 +239,15 @@ def box_overlap(vertices: np.ndarray, faces: np.ndarray) -> float:
 def check_overlap(vertices: np.ndarray, faces: np.ndarray, name: str = "the mesh") -> None:
     """Refuse a mesh whose triangles overlap beyond :data:`MAX_BOX_OVERLAP`: measuring
     distances to it would take minutes to hours, not seconds."""
-    overlap = box_overlap(vertices, faces)
+    refuse_overlap(box_overlap(vertices, faces), len(faces), name)
+
+
+def refuse_overlap(overlap: float, n_faces: int, name: str = "the mesh") -> None:
+    """:func:`check_overlap` of a mesh whose :func:`box_overlap` is known (a BVH measures
+    it while it is built: ``tree.box_overlap``)."""
     if overlap > MAX_BOX_OVERLAP:
         raise MeshbitsError(
-            f"{name}'s {len(faces):,} triangles overlap: a point of its bounding box lies in "
+            f"{name}'s {n_faces:,} triangles overlap: a point of its bounding box lies in "
             f"{overlap:,.0f} triangles' boxes on average (a surface: below 1; at most "
             f"{MAX_BOX_OVERLAP:g} are measured), so each distance query would visit "
             "thousands of triangles. Remove the overlapping faces first (polygons of many "
