@@ -64,6 +64,10 @@ const SAMPLE_CHUNK: usize = 1024;
 /// (`2⁻⁴⁰`, times the target's half extent plus the bound; dimensionless).
 const ROUNDING_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
 
+/// The least tolerance a relative one becomes, relative to the target's half extent
+/// (dimensionless): well above the rounding margin, so that it can be reached.
+pub const RELATIVE_FLOOR: f64 = 1e-9;
+
 /// Cells per parallel work unit during refinement.
 const CELL_CHUNK: usize = 256;
 
@@ -79,6 +83,11 @@ pub struct Options {
     pub bounds: bool,
     /// Refine until `upper - lower <= tolerance` (length); implies `bounds`.
     pub tolerance: Option<f64>,
+    /// Without `tolerance`: refine until `upper - lower <= relative_tolerance * lower`
+    /// (dimensionless, `lower` the sampled maximum when the refinement starts; at least
+    /// [`RELATIVE_FLOOR`] times the target's half extent, reachable even when `lower` is
+    /// 0); implies `bounds`.
+    pub relative_tolerance: Option<f64>,
     /// With a tolerance, the question is only whether `h(A, B) <= threshold` (length): a
     /// piece settles once its bound is `<= threshold` (instead of `lower + tolerance`),
     /// and the refinement stops once the lower bound exceeds it.
@@ -420,12 +429,19 @@ pub fn directed(
 }
 
 fn check_tolerance(opts: &Options) -> Result<(), MeshError> {
-    match opts.tolerance {
-        Some(tol) if !(tol > 0.0 && tol.is_finite()) => Err(MeshError::Parameter(format!(
-            "tolerance must be positive and finite, got {tol}"
-        ))),
-        _ => Ok(()),
+    for (name, value) in [
+        ("tolerance", opts.tolerance),
+        ("relative_tolerance", opts.relative_tolerance),
+    ] {
+        if let Some(tol) = value
+            && !(tol > 0.0 && tol.is_finite())
+        {
+            return Err(MeshError::Parameter(format!(
+                "{name} must be positive and finite, got {tol}"
+            )));
+        }
     }
+    Ok(())
 }
 
 /// [`directed`] with the source's samples given (drawn with [`surface_samples`] from
@@ -465,7 +481,8 @@ pub fn directed_from_samples(
         )));
     }
     let nv = samples.vertex_count();
-    let bounds_wanted = opts.bounds || opts.tolerance.is_some();
+    let bounds_wanted =
+        opts.bounds || opts.tolerance.is_some() || opts.relative_tolerance.is_some();
     let full = opts.statistics || opts.return_samples;
 
     // Exact distances where needed: all samples (full), or the vertices (bounds).
@@ -521,7 +538,11 @@ pub fn directed_from_samples(
         let settle_at = |lower: f64, tol: f64| opts.threshold.unwrap_or(lower + tol);
         let (mut refined_points, mut refined_cells, mut converged) = (0, 0, None);
         let mut settled = 0.0_f64;
-        if let Some(tol) = opts.tolerance {
+        let tolerance = opts.tolerance.or_else(|| {
+            opts.relative_tolerance
+                .map(|r| (r * lower).max(RELATIVE_FLOOR * tree.half_extent()))
+        });
+        if let Some(tol) = tolerance {
             let start = settle_at(lower, tol);
             let mut active: Vec<Cell> = faces.par_iter().map(|f| level0(f, start)).collect();
             let mut next_index = points.len();
@@ -657,6 +678,7 @@ mod tests {
             statistics: true,
             bounds: true,
             tolerance: None,
+            relative_tolerance: None,
             threshold: None,
             refine_budget: 1_000_000,
             return_samples: false,
@@ -737,6 +759,38 @@ mod tests {
             truth,
             b.upper
         );
+    }
+
+    /// A relative tolerance refines to that fraction of the sampled maximum; on identical
+    /// meshes (maximum 0) it still ends, at the floor.
+    #[test]
+    fn a_relative_tolerance_refines_to_a_fraction_of_the_maximum() {
+        let (vb, fb) = square(2, 0.0);
+        let (mut va, fa) = square(2, 0.0);
+        va[4][2] = 0.2;
+        let ta = TriangleTree::build(&va, &fa).unwrap();
+        let opts = Options {
+            area_samples: 50,
+            statistics: false,
+            relative_tolerance: Some(0.01),
+            ..options()
+        };
+        let r = directed(&vb, &fb, &ta, &opts).unwrap();
+        let b = r.bounds.unwrap();
+        assert_eq!(b.converged, Some(true));
+        assert!(b.upper - r.max <= 0.01 * r.max, "{} {}", b.upper, r.max);
+        assert!(b.refined_points > 0);
+        let tb = TriangleTree::build(&vb, &fb).unwrap();
+        let same = directed(&vb, &fb, &tb, &opts).unwrap();
+        assert_eq!(same.max, 0.0);
+        let b = same.bounds.unwrap();
+        assert_eq!(b.converged, Some(true));
+        assert!(b.upper <= RELATIVE_FLOOR * tb.half_extent(), "{}", b.upper);
+        let bad = Options {
+            relative_tolerance: Some(-1.0),
+            ..opts
+        };
+        assert!(directed(&vb, &fb, &ta, &bad).is_err());
     }
 
     #[test]

@@ -287,7 +287,7 @@ fn build_trees<'py>(
 /// One-sided sampled Hausdorff distance from a mesh to a tree; a dict of raw results
 /// (see `meshbits.hausdorff`).
 #[pyfunction]
-#[pyo3(signature = (vertices, faces, tree, samples, seed, statistics, bounds, tolerance, refine_budget, return_samples, threshold = None))]
+#[pyo3(signature = (vertices, faces, tree, samples, seed, statistics, bounds, tolerance, refine_budget, return_samples, threshold = None, relative_tolerance = None))]
 #[allow(clippy::too_many_arguments)]
 fn hausdorff_directed<'py>(
     py: Python<'py>,
@@ -302,6 +302,7 @@ fn hausdorff_directed<'py>(
     refine_budget: usize,
     return_samples: bool,
     threshold: Option<f64>,
+    relative_tolerance: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
     let opts = Options {
@@ -310,6 +311,7 @@ fn hausdorff_directed<'py>(
         statistics,
         bounds,
         tolerance,
+        relative_tolerance,
         threshold,
         refine_budget,
         return_samples,
@@ -417,7 +419,7 @@ fn sample_mesh<'py>(
 
 /// One-sided sampled Hausdorff distance from a sampled mesh to a tree, reusing its samples.
 #[pyfunction]
-#[pyo3(signature = (source, tree, statistics, bounds, tolerance, refine_budget, return_samples, threshold = None))]
+#[pyo3(signature = (source, tree, statistics, bounds, tolerance, refine_budget, return_samples, threshold = None, relative_tolerance = None))]
 #[allow(clippy::too_many_arguments)]
 fn hausdorff_from_samples<'py>(
     py: Python<'py>,
@@ -429,6 +431,7 @@ fn hausdorff_from_samples<'py>(
     refine_budget: usize,
     return_samples: bool,
     threshold: Option<f64>,
+    relative_tolerance: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = Options {
         area_samples: 0,
@@ -436,6 +439,7 @@ fn hausdorff_from_samples<'py>(
         statistics,
         bounds,
         tolerance,
+        relative_tolerance,
         threshold,
         refine_budget,
         return_samples,

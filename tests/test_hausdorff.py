@@ -293,6 +293,29 @@ def test_max_only_gives_the_same_maximum_and_bound():
     assert full.upper == fast.upper and full.distance == fast.distance
 
 
+def test_a_relative_tolerance_certifies_within_that_fraction_of_each_maximum():
+    """Each direction refined until its bound is within 1% of its own sampled maximum:
+    far tighter than the unrefined bound, and inside a tight absolute refinement's."""
+    a, b = load("bunny_res4.ply"), load("bunny_res3.ply")
+    loose = meshbits.hausdorff(a, b, samples=5_000, bounds=True, statistics=False)
+    r = meshbits.hausdorff(a, b, samples=5_000, relative_tolerance=0.01, statistics=False)
+    assert r.relative_tolerance == 0.01 and r.tolerance is None
+    for d in (r.a_to_b, r.b_to_a):
+        assert d.converged
+        assert d.max <= d.upper <= 1.01 * d.max
+    assert r.upper < loose.upper
+    tight = meshbits.hausdorff(a, b, samples=5_000, tolerance=1e-7 * r.distance)
+    assert tight.distance <= r.upper and r.distance <= tight.upper
+    with pytest.raises(meshbits.MeshbitsError, match="not both"):
+        meshbits.hausdorff(a, b, tolerance=1e-3, relative_tolerance=0.01)
+    with pytest.raises(meshbits.MeshbitsError, match="relative_tolerance must be positive"):
+        meshbits.hausdorff(a, b, relative_tolerance=0.0)
+    same = meshbits.hausdorff(a, a, samples=1_000, relative_tolerance=0.01)
+    size = np.ptp(a[0], axis=0).max()
+    assert same.distance <= 1e-15 * size and same.a_to_b.converged and same.b_to_a.converged
+    assert same.upper <= 1e-8 * size
+
+
 # --- hausdorff: analytic cases -----------------------------------------------------------
 
 
@@ -498,6 +521,12 @@ def test_cli_json_and_table(capsys):
     captured = capsys.readouterr()
     assert "certified upper bound" in captured.out and "mean" not in captured.out
     assert "building the BVH" in captured.err
+    # --bounds alone: each direction's bound within 1% of its sampled maximum.
+    assert main(["hausdorff", a, b, "--samples", "2000", "--bounds", "--json", "--quiet"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["relative_tolerance"] == 0.01 and out["tolerance"] is None
+    for side in ("a_to_b", "b_to_a"):
+        assert out[side]["converged"] and out[side]["upper"] <= 1.01 * out[side]["max"]
     assert main(["hausdorff", a, str(DATA / "missing.ply")]) == 2
     assert "no such mesh file" in capsys.readouterr().err
     assert main(["hausdorff", a, b, "--tolerance", "-1", "--quiet"]) == 2

@@ -180,6 +180,7 @@ def hausdorff_directed(
     refine_budget: int,
     return_samples: bool,
     threshold: float | None = None,
+    relative_tolerance: float | None = None,
 ) -> _DirectedDict: ...
 def surface_samples(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32], samples: int, seed: int
@@ -242,6 +243,7 @@ def hausdorff_from_samples(
     refine_budget: int,
     return_samples: bool,
     threshold: float | None = None,
+    relative_tolerance: float | None = None,
 ) -> _DirectedDict: ...
 def simplify(
     vertices: npt.NDArray[np.float64],

@@ -32,6 +32,7 @@ import numpy as np
 from . import __version__, model
 from .complexity import shape_complexity
 from .constants import (
+    BOUNDS_RELATIVE_TOLERANCE,
     DRACO_ALPHA,
     DRACO_CONNECTIVITY_BITS,
     DUPLICATES,
@@ -1137,7 +1138,12 @@ def _add_hausdorff(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="refine until the certified upper bound is within this length of the sampled value",
     )
-    p.add_argument("--bounds", action="store_true", help="also report a certified upper bound")
+    p.add_argument(
+        "--bounds",
+        action="store_true",
+        help="also report a certified upper bound, refined until each direction's is within "
+        f"{BOUNDS_RELATIVE_TOLERANCE:.0%} of its sampled maximum (or within --tolerance)",
+    )
     p.add_argument(
         "--max-only",
         action="store_true",
@@ -1192,6 +1198,9 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
         statistics=not args.max_only,
         bounds=args.bounds,
         tolerance=args.tolerance,
+        relative_tolerance=(
+            BOUNDS_RELATIVE_TOLERANCE if args.bounds and args.tolerance is None else None
+        ),
         refine_budget=args.refine_budget,
         progress=None if args.quiet else _progress,
     )

@@ -334,6 +334,9 @@ class Hausdorff:
         Whether every sample's distance was computed (mean, RMS, percentiles).
     tolerance : float or None
         The requested ``upper - distance`` (length).
+    relative_tolerance : float or None
+        The requested ``upper - max`` of each direction, relative to its sampled ``max``
+        (dimensionless).
     """
 
     distance: float
@@ -343,6 +346,7 @@ class Hausdorff:
     seed: int
     statistics: bool
     tolerance: float | None
+    relative_tolerance: float | None = None
 
     @property
     def lower(self) -> float:
@@ -358,6 +362,7 @@ class Hausdorff:
             "seed": self.seed,
             "statistics": self.statistics,
             "tolerance": self.tolerance,
+            "relative_tolerance": self.relative_tolerance,
             "a_to_b": self.a_to_b.to_dict(arrays=arrays),
             "b_to_a": self.b_to_a.to_dict(arrays=arrays),
         }
@@ -399,6 +404,7 @@ def hausdorff(
     statistics: bool = True,
     bounds: bool = False,
     tolerance: float | None = None,
+    relative_tolerance: float | None = None,
     return_samples: bool = False,
     refine_budget: int = HAUSDORFF_REFINE_BUDGET,
     progress: ProgressCallback | None = None,
@@ -436,6 +442,10 @@ def hausdorff(
         Refine (split triangles at their edge midpoints, evaluate the midpoints) where the
         bound exceeds ``max + tolerance``, until ``upper - max <= tolerance`` in each
         direction (length). Implies ``bounds``.
+    relative_tolerance
+        Instead of ``tolerance``: refine each direction until ``upper - max`` is at most
+        this fraction of its sampled ``max`` (for example 0.01; at least 1e-9 of the
+        target's half extent, so identical meshes end too). Implies ``bounds``.
     return_samples
         Also return each direction's sample points, their exact distances and the
         per-vertex distances of the source (implies the full computation).
@@ -471,7 +481,10 @@ def hausdorff(
         samples = _check_count(samples, "samples")
     refine_budget = _check_count(refine_budget, "refine_budget")
     tolerance = _check_tolerance(tolerance)
-    bounds = bounds or tolerance is not None
+    relative_tolerance = _check_tolerance(relative_tolerance, "relative_tolerance")
+    if tolerance is not None and relative_tolerance is not None:
+        raise MeshbitsError("give tolerance (a length) or relative_tolerance, not both")
+    bounds = bounds or tolerance is not None or relative_tolerance is not None
 
     def say(line: str) -> None:
         if progress is not None:
@@ -502,10 +515,14 @@ def hausdorff(
             tolerance,
             refine_budget,
             return_samples,
+            None,
+            relative_tolerance,
         )
         say(f"{source} -> {target}: max {raw['max']:.6g} in {time.perf_counter() - start:.2f} s")
         directions[source] = _directed(raw)
-    return _symmetric(directions["A"], directions["B"], seed, statistics, tolerance)
+    return _symmetric(
+        directions["A"], directions["B"], seed, statistics, tolerance, relative_tolerance
+    )
 
 
 def _symmetric(
@@ -514,6 +531,7 @@ def _symmetric(
     seed: int,
     statistics: bool,
     tolerance: float | None,
+    relative_tolerance: float | None = None,
 ) -> Hausdorff:
     upper = None
     if a_to_b.upper is not None and b_to_a.upper is not None:
@@ -526,17 +544,18 @@ def _symmetric(
         seed=seed,
         statistics=bool(statistics),
         tolerance=tolerance,
+        relative_tolerance=relative_tolerance,
     )
 
 
-def _check_tolerance(tolerance: Any) -> float | None:
+def _check_tolerance(tolerance: Any, name: str = "tolerance") -> float | None:
     if tolerance is None:
         return None
     if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real):
-        raise TypeError(f"tolerance must be a number or None, got {tolerance!r}")
+        raise TypeError(f"{name} must be a number or None, got {tolerance!r}")
     value = float(tolerance)
     if not (value > 0 and math.isfinite(value)):
-        raise MeshbitsError(f"tolerance must be positive and finite, got {tolerance}")
+        raise MeshbitsError(f"{name} must be positive and finite, got {tolerance}")
     return value
 
 
