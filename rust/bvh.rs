@@ -557,25 +557,7 @@ impl TriangleTree {
     /// search starting from the previous answer. Results do not depend on the order or the
     /// thread count.
     pub fn query(&self, points: &[[f64; 3]]) -> Result<QueryResult, MeshError> {
-        if self.is_empty() {
-            return Err(MeshError::Empty("the tree holds no triangles".into()));
-        }
-        check_finite(points).map_err(|e| match e {
-            MeshError::NonFinite { vertex } => {
-                MeshError::Parameter(format!("point {vertex} has a NaN or infinite coordinate"))
-            }
-            other => other,
-        })?;
-        let local: Vec<DVec3> = points
-            .par_iter()
-            .map(|p| DVec3::from_array(*p) - self.centre)
-            .collect();
-        if let Some((i, far)) = self.beyond_reach(&local) {
-            return Err(MeshError::Parameter(format!(
-                "point {i} lies {far:.3e} (length) from the mesh's centre: more than the \
-                 supported {MAX_EXTENT:.0e}"
-            )));
-        }
+        let local = self.local_points(points)?;
         let order = coherent_order(&local);
         let hits: Vec<Nearest> = order
             .par_chunks(QUERY_CHUNK)
@@ -603,6 +585,70 @@ impl TriangleTree {
             face[i] = hit.face;
         }
         Ok((dist, closest, face))
+    }
+
+    /// Which of `points` (caller's frame) lie farther than `distance` (length) from every
+    /// triangle, decided exactly (`d(p) > distance`). A search stops at the first triangle
+    /// within `distance` (usually the previous point's, or one in its subtree), so this
+    /// costs far less than [`query`](Self::query) when most points are near the mesh.
+    pub fn farther_than(&self, points: &[[f64; 3]], distance: f64) -> Result<Vec<bool>, MeshError> {
+        if !(distance >= 0.0 && distance.is_finite()) {
+            return Err(MeshError::Parameter(format!(
+                "distance must be finite and >= 0, got {distance}"
+            )));
+        }
+        let local = self.local_points(points)?;
+        let stop = distance * distance;
+        let order = coherent_order(&local);
+        let verdicts: Vec<bool> = order
+            .par_chunks(QUERY_CHUNK)
+            .flat_map_iter(|chunk| {
+                let mut stack = self.stack();
+                let mut hint = u32::MAX;
+                chunk
+                    .iter()
+                    .map(|&i| {
+                        let hit = self
+                            .nearest_local(local[i as usize], hint, stop, &mut stack)
+                            .expect("the tree is not empty");
+                        hint = hit.slot;
+                        // Below `stop` the search ended early: within the distance. Else it
+                        // ran to completion and `d2` is the exact minimum.
+                        hit.d2 > stop
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let mut far = vec![false; points.len()];
+        for (&i, verdict) in order.iter().zip(verdicts) {
+            far[i as usize] = verdict;
+        }
+        Ok(far)
+    }
+
+    /// `points` (caller's frame) in the tree's recentred frame, checked: finite and
+    /// within [`MAX_EXTENT`] of the centre. Fails on an empty tree.
+    fn local_points(&self, points: &[[f64; 3]]) -> Result<Vec<DVec3>, MeshError> {
+        if self.is_empty() {
+            return Err(MeshError::Empty("the tree holds no triangles".into()));
+        }
+        check_finite(points).map_err(|e| match e {
+            MeshError::NonFinite { vertex } => {
+                MeshError::Parameter(format!("point {vertex} has a NaN or infinite coordinate"))
+            }
+            other => other,
+        })?;
+        let local: Vec<DVec3> = points
+            .par_iter()
+            .map(|p| DVec3::from_array(*p) - self.centre)
+            .collect();
+        if let Some((i, far)) = self.beyond_reach(&local) {
+            return Err(MeshError::Parameter(format!(
+                "point {i} lies {far:.3e} (length) from the mesh's centre: more than the \
+                 supported {MAX_EXTENT:.0e}"
+            )));
+        }
+        Ok(local)
     }
 
     /// Checks the tree's invariants: every triangle slot sits in exactly one leaf, every
@@ -904,6 +950,26 @@ mod tests {
             TriangleTree::build(&[[0.0; 3]], &[]).unwrap().box_overlap(),
             0.0
         );
+    }
+
+    /// `farther_than` agrees with the exact distances of `query`, at several distances.
+    #[test]
+    fn farther_than_matches_the_exact_distances() {
+        let (v, f) = soup(3_000, 21);
+        let tree = TriangleTree::build(&v, &f).unwrap();
+        let mut s = 5;
+        let points: Vec<[f64; 3]> = (0..4_000)
+            .map(|_| [lcg(&mut s), lcg(&mut s), lcg(&mut s)].map(|x| x * 1.4 - 0.2))
+            .collect();
+        let (exact, _, _) = tree.query(&points).unwrap();
+        for distance in [0.0, 0.01, 0.05, 0.2, 10.0] {
+            let far = tree.farther_than(&points, distance).unwrap();
+            for (i, (&d, &verdict)) in exact.iter().zip(&far).enumerate() {
+                assert_eq!(verdict, d > distance, "point {i}: {d} against {distance}");
+            }
+        }
+        assert!(tree.farther_than(&points, -1.0).is_err());
+        assert!(tree.farther_than(&[[f64::NAN, 0.0, 0.0]], 0.1).is_err());
     }
 
     #[test]

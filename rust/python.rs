@@ -8,7 +8,7 @@
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use numpy::{
-    IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
+    IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
     PyUntypedArrayMethods,
 };
 use pyo3::create_exception;
@@ -200,6 +200,18 @@ impl PyTriangleTree {
             triples_to_array(py, q)?.into_any(),
             f.into_pyarray(py).into_any(),
         ))
+    }
+
+    /// Whether each point lies farther than `distance` from the mesh (exact verdicts).
+    fn farther_than<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+        distance: f64,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let p = triples(&points, "points")?;
+        let far = run_detached(py, || self.tree.farther_than(p, distance))?;
+        Ok(far.into_pyarray(py))
     }
 
     /// Checks the tree's invariants; raises `RuntimeError` naming the first broken one.

@@ -166,6 +166,29 @@ def test_closest_points_match_brute_force(case):
     assert result.distances.dtype == np.float64 and result.faces.dtype == np.int64
 
 
+@FAST
+@given(mesh_and_points(), st.floats(0.0, 2.0))
+def test_farther_than_matches_brute_force(case, fraction):
+    """The early-exit verdict ``d > distance`` equals brute force's, away from ties."""
+    v, f, pts = case
+    reference = brute_distance(pts, v, f)
+    distance = fraction * float(np.median(reference))
+    far = meshbits.ClosestPoints((v, f)).farther_than(pts, distance)
+    assert far.dtype == np.bool_ and far.shape == (len(pts),)
+    clear = np.abs(reference - distance) > tolerance(v, f, pts)
+    assert np.array_equal(far[clear], (reference > distance)[clear])
+
+
+def test_farther_than_refuses_bad_distances():
+    cp = meshbits.ClosestPoints(square(2))
+    assert cp.farther_than(np.zeros((0, 3)), 0.1).shape == (0,)
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="distance must be finite"):
+            cp.farther_than([[0.0, 0.0, 1.0]], bad)
+    with pytest.raises(TypeError):
+        cp.farther_than([[0.0, 0.0, 1.0]], "0.1")
+
+
 def test_points_on_vertices_and_edges_are_at_distance_zero():
     v, f = square(3)
     cp = meshbits.ClosestPoints((v, f))

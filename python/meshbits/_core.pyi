@@ -160,6 +160,9 @@ class TriangleTree:
     def query(
         self, points: npt.NDArray[np.float64]
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.uint32]]: ...
+    def farther_than(
+        self, points: npt.NDArray[np.float64], distance: float
+    ) -> npt.NDArray[np.bool_]: ...
     def validate(self) -> None: ...
 
 def build_tree(

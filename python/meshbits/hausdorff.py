@@ -168,6 +168,15 @@ class ClosestPoints:
         distances, closest, faces = self._tree.query(array)
         return Closest(distances, closest, faces.astype(np.int64))
 
+    def farther_than(self, points: Any, distance: float) -> np.ndarray:
+        """Whether each of ``points`` ((n, 3) float) lies farther than ``distance``
+        (length, >= 0) from the mesh: ``query(points).distances > distance``, decided
+        exactly, but each search stops at the first triangle within ``distance``."""
+        array = as_points(points, "points", allow_empty=True)
+        if isinstance(distance, bool) or not isinstance(distance, numbers.Real):
+            raise TypeError(f"distance must be a number, got {distance!r}")
+        return self._tree.farther_than(array, float(distance))
+
     def validate(self) -> None:
         """Check the tree's invariants (every triangle reachable once, boxes containing
         their triangles and children); raises ``RuntimeError`` if one is broken."""

@@ -1201,8 +1201,7 @@ def _simplify_locking(
         return result, 0, named(result)
     used = referenced(source[1], len(source[0]))
     for _ in range(rounds):
-        distances = ClosestPoints(result.mesh, check=False).query(source[0][used]).distances
-        strays = used[distances > aim]
+        strays = used[ClosestPoints(result.mesh, check=False).farther_than(source[0][used], aim)]
         if len(strays) == 0 or len(strays) > LOCK_MAX_FRACTION * max(result.vertex_count, 1):
             break
         locked[strays] = True
