@@ -558,24 +558,7 @@ impl TriangleTree {
     /// thread count.
     pub fn query(&self, points: &[[f64; 3]]) -> Result<QueryResult, MeshError> {
         let local = self.local_points(points)?;
-        let order = coherent_order(&local);
-        let hits: Vec<Nearest> = order
-            .par_chunks(QUERY_CHUNK)
-            .flat_map_iter(|chunk| {
-                let mut stack = self.stack();
-                let mut hint = u32::MAX;
-                chunk
-                    .iter()
-                    .map(|&i| {
-                        let hit = self
-                            .nearest_local(local[i as usize], hint, 0.0, &mut stack)
-                            .expect("the tree is not empty");
-                        hint = hit.slot;
-                        hit
-                    })
-                    .collect::<Vec<_>>()
-            })
-            .collect();
+        let (order, hits) = self.search_coherent(&local, QUERY_CHUNK, 0.0, |hit| hit);
         let n = points.len();
         let (mut dist, mut closest, mut face) = (vec![0.0; n], vec![[0.0; 3]; n], vec![0u32; n]);
         for (&i, hit) in order.iter().zip(&hits) {
@@ -585,6 +568,37 @@ impl TriangleTree {
             face[i] = hit.face;
         }
         Ok((dist, closest, face))
+    }
+
+    /// Searches `local` points (recentred frame) in [`coherent_order`], in parallel units
+    /// of `chunk` points, each search hinted by the previous answer of its unit and
+    /// stopping below `stop_below_d2` (0: exact). Returns the order and, in that order,
+    /// what `keep` takes of each answer.
+    pub fn search_coherent<T: Send>(
+        &self,
+        local: &[DVec3],
+        chunk: usize,
+        stop_below_d2: f64,
+        keep: impl Fn(Nearest) -> T + Sync,
+    ) -> (Vec<u32>, Vec<T>) {
+        let order = coherent_order(local);
+        let kept = order
+            .par_chunks(chunk)
+            .flat_map_iter(|unit| {
+                let mut stack = self.stack();
+                let mut hint = u32::MAX;
+                unit.iter()
+                    .map(|&i| {
+                        let hit = self
+                            .nearest_local(local[i as usize], hint, stop_below_d2, &mut stack)
+                            .expect("the tree is not empty");
+                        hint = hit.slot;
+                        keep(hit)
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        (order, kept)
     }
 
     /// Which of `points` (caller's frame) lie farther than `distance` (length) from every
@@ -599,26 +613,10 @@ impl TriangleTree {
         }
         let local = self.local_points(points)?;
         let stop = distance * distance;
-        let order = coherent_order(&local);
-        let verdicts: Vec<bool> = order
-            .par_chunks(QUERY_CHUNK)
-            .flat_map_iter(|chunk| {
-                let mut stack = self.stack();
-                let mut hint = u32::MAX;
-                chunk
-                    .iter()
-                    .map(|&i| {
-                        let hit = self
-                            .nearest_local(local[i as usize], hint, stop, &mut stack)
-                            .expect("the tree is not empty");
-                        hint = hit.slot;
-                        // Below `stop` the search ended early: within the distance. Else it
-                        // ran to completion and `d2` is the exact minimum.
-                        hit.d2 > stop
-                    })
-                    .collect::<Vec<_>>()
-            })
-            .collect();
+        // Below `stop` a search ended early: within the distance. Else it ran to
+        // completion, and `d2` is the exact minimum.
+        let (order, verdicts) =
+            self.search_coherent(&local, QUERY_CHUNK, stop, |hit| hit.d2 > stop);
         let mut far = vec![false; points.len()];
         for (&i, verdict) in order.iter().zip(verdicts) {
             far[i as usize] = verdict;

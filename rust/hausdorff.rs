@@ -187,24 +187,7 @@ impl Best {
 /// Exact squared distance of every point, in parallel, searched in [`coherent_order`];
 /// also returns each point's nearest triangle slot (the hint for later searches).
 fn exact_distances(tree: &TriangleTree, points: &[DVec3]) -> (Vec<f64>, Vec<u32>) {
-    let order = coherent_order(points);
-    let hits: Vec<(f64, u32)> = order
-        .par_chunks(SAMPLE_CHUNK)
-        .flat_map_iter(|chunk| {
-            let mut stack = tree.stack();
-            let mut hint = u32::MAX;
-            chunk
-                .iter()
-                .map(|&i| {
-                    let hit = tree
-                        .nearest_local(points[i as usize], hint, 0.0, &mut stack)
-                        .expect("the tree is not empty");
-                    hint = hit.slot;
-                    (hit.d2, hit.slot)
-                })
-                .collect::<Vec<_>>()
-        })
-        .collect();
+    let (order, hits) = tree.search_coherent(points, SAMPLE_CHUNK, 0.0, |hit| (hit.d2, hit.slot));
     let mut d2 = vec![0.0; points.len()];
     let mut slots = vec![0u32; points.len()];
     for (&i, &(d, slot)) in order.iter().zip(&hits) {
@@ -728,14 +711,19 @@ mod tests {
         }
     }
 
-    #[test]
-    fn bump_refines_to_the_tolerance() {
-        // Target: flat square; source: the same square with its centre vertex raised by
-        // 0.2, so h(A, B) = 0.2 exactly at that vertex, and h(B, A) is below it.
+    /// A flat square (vertices, faces) and the tree of the same square with its centre
+    /// vertex raised by 0.2 (a cone).
+    fn flat_and_bump() -> (Vec<[f64; 3]>, Vec<[u32; 3]>, TriangleTree) {
         let (vb, fb) = square(2, 0.0);
         let (mut va, fa) = square(2, 0.0);
         va[4][2] = 0.2;
-        let ta = TriangleTree::build(&va, &fa).unwrap();
+        (vb, fb, TriangleTree::build(&va, &fa).unwrap())
+    }
+
+    #[test]
+    fn bump_refines_to_the_tolerance() {
+        // h(flat, bump): the flat centre (0.5, 0.5, 0) against the raised cone.
+        let (vb, fb, ta) = flat_and_bump();
         let opts = Options {
             area_samples: 50,
             statistics: false,
@@ -746,12 +734,8 @@ mod tests {
         let b = r.bounds.unwrap();
         assert_eq!(b.converged, Some(true));
         assert!(b.upper - r.max <= 1e-4 + 1e-15, "{} {}", b.upper, r.max);
-        // The true value: the flat centre (0.5, 0.5, 0) against the raised cone.
-        let truth = {
-            let tb = TriangleTree::build(&va, &fa).unwrap();
-            let (d, _, _) = tb.query(&[[0.5, 0.5, 0.0]]).unwrap();
-            d[0]
-        };
+        let (d, _, _) = ta.query(&[[0.5, 0.5, 0.0]]).unwrap();
+        let truth = d[0];
         assert!(
             r.max <= truth + 1e-12 && truth <= b.upper + 1e-12,
             "{} {} {}",
@@ -765,10 +749,7 @@ mod tests {
     /// meshes (maximum 0) it still ends, at the floor.
     #[test]
     fn a_relative_tolerance_refines_to_a_fraction_of_the_maximum() {
-        let (vb, fb) = square(2, 0.0);
-        let (mut va, fa) = square(2, 0.0);
-        va[4][2] = 0.2;
-        let ta = TriangleTree::build(&va, &fa).unwrap();
+        let (vb, fb, ta) = flat_and_bump();
         let opts = Options {
             area_samples: 50,
             statistics: false,
@@ -795,12 +776,8 @@ mod tests {
 
     #[test]
     fn a_threshold_decides_with_less_refinement() {
-        // The bump of `bump_refines_to_the_tolerance`: h(flat, bump) is the distance of the
-        // flat centre to the cone, about 0.14.
-        let (vb, fb) = square(2, 0.0);
-        let (mut va, fa) = square(2, 0.0);
-        va[4][2] = 0.2;
-        let ta = TriangleTree::build(&va, &fa).unwrap();
+        // h(flat, bump) is the distance of the flat centre to the cone, about 0.14.
+        let (vb, fb, ta) = flat_and_bump();
         let base = Options {
             area_samples: 50,
             statistics: false,
