@@ -241,6 +241,67 @@ def test_with_json_a_failure_is_a_json_object_on_stdout_too(tmp_path, capsys):
     assert failure["exit_code"] == 2 and failure["error"] in captured.err
 
 
+@pytest.mark.parametrize(
+    "words",
+    [
+        ["compress", str(DATA / "bunny_res4.ply"), "--error", "abc", "--json"],
+        ["compress", str(DATA / "bunny_res4.ply"), "--size", "20XB", "--json"],
+        ["k", str(DATA / "bunny_res4.ply"), "--estimator", "foo", "--json"],
+    ],
+)
+def test_with_json_a_usage_error_is_a_json_object_too(capsys, words):
+    """argparse's refusals printed nothing on stdout."""
+    assert main(words) == 2
+    captured = capsys.readouterr()
+    failure = json.loads(captured.out)
+    assert failure["exit_code"] == 2 and failure["error"] == captured.err.strip()
+
+
+def test_every_command_has_help(capsys):
+    """``meshbits hausdorff --help`` crashed on a "%" in an option's help."""
+    from meshbits.cli import build_parser
+
+    commands = build_parser()._subparsers._group_actions[0].choices  # type: ignore[union-attr]
+    for command in commands:
+        assert main([command, "--help"]) == 0, command
+        assert "usage: meshbits " + command in capsys.readouterr().out
+
+
+def test_quantize_refuses_an_output_it_cannot_write(tmp_path, capsys):
+    """``-o q.xyz`` was an internal error after the work, from trimesh."""
+    out = tmp_path / "q.xyz"
+    assert main(["quantize", str(DATA / "bunny_res4.ply"), "--bits", "8", "-o", str(out)]) == 2
+    assert "cannot write .xyz" in capsys.readouterr().err and not out.exists()
+
+
+def test_drawing_without_matplotlib_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    """It was an internal error, after the whole distance computation for --colors."""
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib fails
+    a, b = str(DATA / "bunny_res4.ply"), str(DATA / "bunny_res3.ply")
+    assert main(["hausdorff", a, b, "--colors", str(tmp_path / "c.ply"), "--quiet"]) == 2
+    captured = capsys.readouterr()
+    assert "needs matplotlib: pip install 'meshbits[plot]'" in captured.err
+    assert captured.out == ""
+    assert main(["plot", a, "-o", str(tmp_path / "f.png")]) == 2
+    assert "needs matplotlib" in capsys.readouterr().err
+
+
+def test_a_closed_stdout_ends_quietly():
+    """``meshbits k ... --json | head -c 10`` printed BrokenPipeError tracebacks."""
+    run_main = "import sys; from meshbits.cli import main; sys.exit(main(sys.argv[1:]))"
+    child = subprocess.Popen(
+        [sys.executable, "-c", run_main, "k", str(DATA / "bunny.ply"), "--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert child.stdout is not None and child.stderr is not None
+    child.stdout.close()
+    with child.stderr:
+        err = child.stderr.read().decode()
+    assert child.wait() == 141
+    assert "Traceback" not in err and "Broken pipe" not in err, err
+
+
 def test_k_headlines_the_welded_vertex_count_of_a_soup(tmp_path, capsys):
     """An STL repeats a vertex per triangle: the headline gave 2,844 vertices for 453."""
     import numpy as np

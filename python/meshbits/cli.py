@@ -8,9 +8,10 @@ Every subcommand prints a short human-readable report, or one JSON object with
 - 2: bad arguments, or an input file that cannot be used (one line on stderr);
 - 3: an internal error, a bug in meshbits (one line on stderr; ``--debug`` shows the
   traceback);
-- 130: interrupted (Ctrl-C).
+- 130: interrupted (Ctrl-C);
+- 141: the reader of stdout closed it (``meshbits ... | head``), silently.
 
-With ``--json`` a failure (2, 3, 130) is also one JSON object on stdout,
+With ``--json`` a failure (2, 3, 130; usage errors too) is also one JSON object on stdout,
 ``{"error": message, "exit_code": code}``.
 
 Arguments and output folders are checked before any file is read.
@@ -21,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import traceback
 from collections.abc import Callable, Sequence
@@ -55,6 +57,8 @@ from .units import parse_length, parse_size
 __all__ = ["main"]
 
 EXIT_OK, EXIT_UNMET, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+#: The reader of stdout closed it (``| head``): the code of a process ended by SIGPIPE.
+EXIT_BROKEN_PIPE = 141
 
 
 class UserError(Exception):
@@ -267,6 +271,8 @@ def _run_demo(args: argparse.Namespace) -> int:
 _FORMATS = {".drc": "draco", ".ply": "ply"}
 _SCENE_FORMATS = (".glb", ".gltf")
 _TRIMESH_FORMATS = (".obj", ".off", ".stl")
+#: What ``save_mesh`` writes (``meshbits quantize -o``).
+_MESH_OUTPUTS = (".ply", ".obj", ".off", ".stl", ".glb", ".gltf")
 
 
 def _add_compress(sub: argparse._SubParsersAction) -> None:
@@ -1142,7 +1148,7 @@ def _add_hausdorff(sub: argparse._SubParsersAction) -> None:
         "--bounds",
         action="store_true",
         help="also report a certified upper bound, refined until each direction's is within "
-        f"{BOUNDS_RELATIVE_TOLERANCE:.0%} of its sampled maximum (or within --tolerance)",
+        f"{100 * BOUNDS_RELATIVE_TOLERANCE:g}%% of its sampled maximum (or within --tolerance)",
     )
     p.add_argument(
         "--max-only",
@@ -1181,6 +1187,7 @@ def _progress(message: object) -> None:
 def _run_hausdorff(args: argparse.Namespace) -> int:
     _output(args.colors)
     if args.colors is not None:
+        _need_matplotlib("--colors")
         _output(args.colors.with_name(args.colors.stem + "_colorbar.png"))
     for path in (args.a, args.b):
         _input(path)
@@ -1257,6 +1264,11 @@ def _add_quantize(sub: argparse._SubParsersAction) -> None:
 
 def _run_quantize(args: argparse.Namespace) -> int:
     _output(args.output)
+    if args.output is not None and args.output.suffix.lower() not in _MESH_OUTPUTS:
+        raise UserError(
+            f"{args.output}: cannot write {args.output.suffix or 'a file without a suffix'}; "
+            f"write a mesh: {', '.join(_MESH_OUTPUTS)}"
+        )
     vertices, faces = load_mesh(_input(args.mesh))
     result = cluster(vertices, faces, bits=args.bits, grid=args.grid, duplicates=args.duplicates)
     if args.output is not None:
@@ -1340,9 +1352,18 @@ def _add_plot(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_run_plot)
 
 
+def _need_matplotlib(what: str) -> None:
+    """Refuse, before any work, an option that draws when matplotlib is missing."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise UserError(f"{what} needs matplotlib: pip install 'meshbits[plot]'") from None
+
+
 def _run_plot(args: argparse.Namespace) -> int:
     from .plot import error_surface
 
+    _need_matplotlib("meshbits plot")
     _check_size_model(args)
     _output(args.output)
     vertices, faces = load_mesh(_input(args.mesh))
@@ -1392,11 +1413,16 @@ _COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
 )
 
 
+class _UsageError(Exception):
+    """A command line that does not parse: its one-line message."""
+
+
 class _Parser(argparse.ArgumentParser):
-    """An argument parser whose usage errors are one line on stderr, exit code 2."""
+    """An argument parser whose usage errors are one line on stderr, exit code 2 (and,
+    with ``--json``, a JSON object on stdout: see :func:`main`)."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        raise _UsageError(f"{self.prog}: error: {message} (see {self.prog} --help)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -1424,13 +1450,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``meshbits`` program; returns the exit code (see the module
     docstring)."""
     parser = build_parser()
+    words = list(sys.argv[1:] if argv is None else argv)
     try:
-        args = parser.parse_args(argv)
-    except SystemExit as done:  # --help, --version, or a usage error already reported
+        args = parser.parse_args(words)
+    except SystemExit as done:  # --help or --version, already printed
         return done.code if isinstance(done.code, int) else EXIT_BAD_INPUT
+    except _UsageError as err:
+        print(err, file=sys.stderr)
+        if "--json" in words:
+            _print_json({"error": str(err), "exit_code": EXIT_BAD_INPUT})
+        return EXIT_BAD_INPUT
     where = f"meshbits {args.command}"
     try:
         return int(args.run(args))
+    except BrokenPipeError:
+        # The reader of stdout went away (``| head``): no traceback, nothing more to say.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except KeyboardInterrupt:
         print(f"{where}: interrupted", file=sys.stderr)
         return _failed(args, "interrupted", EXIT_INTERRUPTED)
