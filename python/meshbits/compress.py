@@ -27,14 +27,20 @@ import numpy as np
 
 from . import _core, model
 from .complexity import ShapeComplexity, shape_complexity
-from .constants import CERTIFY_TOLERANCE, DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, FORMAT_MAX_BITS
+from .constants import (
+    BOUNDS_RELATIVE_TOLERANCE,
+    CERTIFY_TOLERANCE,
+    DRACO_ALPHA,
+    DRACO_CONNECTIVITY_BITS,
+    FORMAT_MAX_BITS,
+)
 from .errors import MeshbitsError
 from .hausdorff import Reference, default_samples
 from .io import write_atomic
 from .mesh import MeshLike, as_mesh
 from .quantize import precision_bits
 from .results import ArrayResult, ProgressCallback
-from .search import Iteration, Search, certify_answer, run_search
+from .search import Iteration, Search, bound_answer, certify_answer, run_search
 from .simplify import METHODS, Simplifier, check_untangled, referenced_vertex_count
 
 __all__ = ["CERTIFY_TOLERANCE", "CompressResult", "Iteration", "compress"]
@@ -248,8 +254,9 @@ def compress(
         Estimator of K.
     certify
         Count an error budget as met only when a certified upper bound of the error
-        (refined until it decides the budget) is within it (default;
-        size and vertex budgets are judged by the sampled error). The search explores
+        (refined until it decides the budget) is within it (default). For a size or
+        vertex budget, bound the answer's error (``error_upper``) within 1% of its
+        sampled value; the answer is the same either way. The search explores
         with sampled distances and certifies its answer, trying the next best when the
         bound exceeds the budget (:func:`meshbits.search.certify_answer`). ``False`` lets
         the sampled distance decide: faster, but a sample only bounds the error from
@@ -336,6 +343,8 @@ def compress(
     run_search(search, max_iterations, progress)
     if certify and constraint == "error":
         certify_answer(search, CERTIFY_TOLERANCE * budget, max(2, max_iterations), progress)
+    elif certify:
+        bound_answer(search, BOUNDS_RELATIVE_TOLERANCE, progress)
     seconds |= search.seconds
 
     best = search.best()

@@ -616,6 +616,7 @@ class Reference:
         refine_budget: int = HAUSDORFF_REFINE_BUDGET,
         check: bool = True,
         threshold: float | None = None,
+        relative_tolerance: float | None = None,
     ) -> Hausdorff:
         """Sampled Hausdorff distance from the reference (``a``) to ``candidate`` (``b``),
         as :func:`hausdorff` computes it; ``samples`` is the candidate's area sample count
@@ -628,7 +629,8 @@ class Reference:
         within it: the refinement settles a piece once its bound is within ``threshold``
         (instead of ``max + tolerance``) and stops once the maximum found exceeds it, so
         ``upper`` may be anywhere up to ``threshold`` (``converged`` is then true when
-        the bounds decided the question, false when ``refine_budget`` ran out first)."""
+        the bounds decided the question, false when ``refine_budget`` ran out first).
+        ``relative_tolerance``, instead of ``tolerance``, as :func:`hausdorff`'s."""
         count = self.samples if samples is None else _check_count(samples, "samples")
         refine_budget = _check_count(refine_budget, "refine_budget")
         if threshold is not None:
@@ -636,13 +638,24 @@ class Reference:
             if not (math.isfinite(threshold) and threshold >= 0):
                 raise MeshbitsError(f"threshold must be finite and >= 0, got {threshold}")
         tolerance = _check_tolerance(tolerance)
-        bounds = bounds or tolerance is not None
+        relative_tolerance = _check_tolerance(relative_tolerance, "relative_tolerance")
+        if tolerance is not None and relative_tolerance is not None:
+            raise MeshbitsError("give tolerance (a length) or relative_tolerance, not both")
+        bounds = bounds or tolerance is not None or relative_tolerance is not None
         vertices, faces = as_mesh(candidate)
         tree = _core.build_tree(vertices, faces)
         if check:
             refuse_overlap(tree.box_overlap, len(faces), "the candidate")
         a_to_b = _core.hausdorff_from_samples(
-            self._sampled, tree, statistics, bounds, tolerance, refine_budget, False, threshold
+            self._sampled,
+            tree,
+            statistics,
+            bounds,
+            tolerance,
+            refine_budget,
+            False,
+            threshold,
+            relative_tolerance,
         )
         b_to_a = _core.hausdorff_directed(
             vertices,
@@ -656,8 +669,16 @@ class Reference:
             refine_budget,
             False,
             threshold,
+            relative_tolerance,
         )
-        return _symmetric(_directed(a_to_b), _directed(b_to_a), self.seed, statistics, tolerance)
+        return _symmetric(
+            _directed(a_to_b),
+            _directed(b_to_a),
+            self.seed,
+            statistics,
+            tolerance,
+            relative_tolerance,
+        )
 
     def quick_distance(
         self, candidate: MeshLike, samples: int | None = None, *, check: bool = True

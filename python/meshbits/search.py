@@ -1322,6 +1322,43 @@ def certify_answer(
         run_search(search, extra_passes, progress)
 
 
+def bound_answer(
+    search: Search, relative_tolerance: float, progress: ProgressCallback | None = None
+) -> Iteration:
+    """The answer of a size or vertex budget (judged by bytes or vertices, not by its
+    error) with a certified upper bound on its error, refined until within
+    ``relative_tolerance`` of each direction's sampled maximum; the answer is unchanged."""
+    best = search.best() or search.closest()
+    if best.measured_error_upper is not None:
+        return best
+    encoded = search.encoded(best)
+    begin = time.perf_counter()
+    h = search.reference.hausdorff(
+        (encoded.vertices, encoded.faces),
+        samples=search.samples,
+        relative_tolerance=relative_tolerance,
+        check=search.levels[best.level].source == "lod",
+    )
+    search.seconds["hausdorff"] += time.perf_counter() - begin
+    bounded = replace(
+        best,
+        measured_error=max(best.measured_error, h.distance),
+        measured_error_upper=float(h.upper if h.upper is not None else h.distance),
+    )
+    search.measurements[search.measurements.index(best)] = bounded
+    if progress is not None:
+        progress(
+            Progress(
+                "compress",
+                f"bound: B = {best.bits}, V = {best.vertices}; error "
+                f"{bounded.measured_error:.4g}, certified <= {bounded.measured_error_upper:.4g} "
+                "(mesh units)",
+                bounded,
+            )
+        )
+    return bounded
+
+
 def run_search(search: Search, max_passes: int, progress: ProgressCallback | None = None) -> None:
     """Plan, build and measure until the search stops or ``max_passes`` are spent."""
     for _ in range(max_passes):
