@@ -809,7 +809,14 @@ def compress_scene(
         outcomes = run_at(budget)
         target_error = budget
     else:
-        outcomes, target_error = _split_size(jobs, budget, run_at, document, world_size)
+
+        def file_bytes(outcomes: list[tuple[Any, Encoding, Any]]) -> int:
+            encodings = [o[1] for o in outcomes]
+            if codec == "meshopt":
+                encodings, _ = _shared_grids(jobs, outcomes)
+            return _write(document, jobs, encodings, codec, None)[1]
+
+        outcomes, target_error = _split_size(jobs, budget, run_at, document, world_size, file_bytes)
     measured = [o[0].measured_error for o in outcomes]
     encodings = [o[1] for o in outcomes]
     if codec == "meshopt":
@@ -968,15 +975,17 @@ def _world_size(
     return float((np.max(highs, axis=0) - np.min(lows, axis=0)).max())
 
 
-def _split_size(jobs, size_bits, run_at, document, world_size):
+def _split_size(jobs, size_bits, run_at, document, world_size, file_bytes):
     """The common world-space error whose primitives fill the size budget: the split of
     bytes that minimises the scene's largest error, found on a log scale from measured
-    sizes (bytes fall about as 1/E)."""
+    sizes (bytes fall about as 1/E). Each try is judged by the bytes of the file it makes
+    (``file_bytes``: the document rebuilt around it, images, JSON and the codec's own
+    entries included); the primitives' share of the budget is what the rest leaves."""
     fixed = _fixed_bytes(document, jobs)
-    room = size_bits / 8 - fixed
-    if room <= 0:
+    budget_bytes = size_bits / 8
+    if budget_bytes - fixed <= 0:
         raise MeshbitsError(
-            f"the size budget ({size_bits / 8:.6g} bytes) does not hold the scene's images and "
+            f"the size budget ({budget_bytes:.6g} bytes) does not hold the scene's images and "
             f"other data ({fixed} bytes)"
         )
     error = 0.002 * world_size
@@ -984,19 +993,21 @@ def _split_size(jobs, size_bits, run_at, document, world_size):
     tried = []
     for _ in range(SIZE_SPLIT_PASSES):
         outcomes = run_at(error)
-        total = sum(o[1].size_bits // 8 for o in outcomes)
+        primitives = sum(o[1].size_bits // 8 for o in outcomes)
+        total = file_bytes(outcomes)
         tried.append((error, total))
-        if total <= room and (best is None or error < best[1]):
+        if total <= budget_bytes and (best is None or error < best[1]):
             best = (outcomes, error)
-        fitting = [e for e, t in tried if t <= room]
-        over = [e for e, t in tried if t > room]
+        fitting = [e for e, t in tried if t <= budget_bytes]
+        over = [e for e, t in tried if t > budget_bytes]
         if fitting and over:
             lo, hi = min(fitting), max(over)
             if lo / hi < 1.05:
                 break
             error = math.sqrt(lo * hi)
         else:
-            error *= min(max(total / room, 0.25), 4.0)
+            room = max(budget_bytes - (total - primitives), 1.0)
+            error *= min(max(primitives / room, 0.25), 4.0)
     if best is None:
         error, _ = min(tried, key=lambda et: et[1])
         return run_at(error), error
