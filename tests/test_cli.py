@@ -286,6 +286,12 @@ def test_drawing_without_matplotlib_is_refused_before_any_work(tmp_path, capsys,
     assert "needs matplotlib" in capsys.readouterr().err
 
 
+def test_a_folder_is_not_called_missing(tmp_path, capsys):
+    """``meshbits k <folder>`` said "no such mesh file"."""
+    assert main(["k", str(tmp_path)]) == 2
+    assert "is a folder, not a mesh file" in capsys.readouterr().err
+
+
 def test_a_closed_stdout_ends_quietly():
     """``meshbits k ... --json | head -c 10`` printed BrokenPipeError tracebacks."""
     run_main = "import sys; from meshbits.cli import main; sys.exit(main(sys.argv[1:]))"

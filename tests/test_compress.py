@@ -93,6 +93,8 @@ def test_size_and_vertex_answers_carry_a_certified_error_bound(budget):
     assert dense.distance <= result.error_upper
     fast = compress(SPOT, **budget, certify=False)
     assert fast.error_upper is None and fast.size_bits == result.size_bits
+    expected_bytes = budget["size"] / 8 if "size" in budget else None
+    assert result.to_dict()["budget_bytes"] == expected_bytes
 
 
 def test_unreachable_budget_says_so():

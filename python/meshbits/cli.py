@@ -170,6 +170,8 @@ def _check_size_model(args: argparse.Namespace) -> None:
 
 
 def _input(path: Path) -> Path:
+    if path.is_dir():
+        raise UserError(f"{path} is a folder, not a mesh file (meshbits batch takes folders)")
     if not path.is_file():
         raise UserError(f"no such mesh file: {path}")
     return path
@@ -730,7 +732,8 @@ def _print_batch(result: Any, args: argparse.Namespace) -> None:
         f"{_bytes_text(result.saved_bytes)}{ratio}) in {result.seconds:.1f} s {where}"
     )
     print(f"  report: {result.report}")
-    print(f"  summary: {result.summary}" + (f", plot: {result.plot}" if result.plot else ""))
+    plot = f", plot: {result.plot}" if result.plot else ", no plot (it needs matplotlib)"
+    print(f"  summary: {result.summary}{plot}")
     failed = [r for r in result.rows if r.status != "met"]
     for row in failed[:_BATCH_LISTED]:
         print(f"  {row.status}: {row.relative}: {row.message}")

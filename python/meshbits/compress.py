@@ -61,7 +61,9 @@ class CompressResult(ArrayResult):
     constraint : str
         ``"size"``, ``"error"`` or ``"vertices"``.
     budget : float
-        The budget: bits for size, mesh length units for error, a count for vertices.
+        The budget: bits for size, mesh length units for error, a count for vertices
+        (``to_dict()`` also gives a size budget in bytes, ``budget_bytes``, as the batch
+        report and the command line state it).
     met : bool
         Whether the chosen output meets the budget (always true for a vertex count).
     message : str
@@ -147,6 +149,7 @@ class CompressResult(ArrayResult):
         return {
             "constraint": self.constraint,
             "budget": self.budget,
+            "budget_bytes": self.budget / 8 if self.constraint == "size" else None,
             "met": self.met,
             "message": self.message,
             "bits": self.bits,
