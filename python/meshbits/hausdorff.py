@@ -646,31 +646,10 @@ class Reference:
         tree = _core.build_tree(vertices, faces)
         if check:
             refuse_overlap(tree.box_overlap, len(faces), "the candidate")
-        a_to_b = _core.hausdorff_from_samples(
-            self._sampled,
-            tree,
-            statistics,
-            bounds,
-            tolerance,
-            refine_budget,
-            False,
-            threshold,
-            relative_tolerance,
-        )
-        b_to_a = _core.hausdorff_directed(
-            vertices,
-            faces,
-            self._tree,
-            count,
-            self.seed,
-            statistics,
-            bounds,
-            tolerance,
-            refine_budget,
-            False,
-            threshold,
-            relative_tolerance,
-        )
+        # What both directions are asked, after their source and target.
+        asked = (statistics, bounds, tolerance, refine_budget, False, threshold, relative_tolerance)
+        a_to_b = _core.hausdorff_from_samples(self._sampled, tree, *asked)
+        b_to_a = _core.hausdorff_directed(vertices, faces, self._tree, count, self.seed, *asked)
         return _symmetric(
             _directed(a_to_b),
             _directed(b_to_a),

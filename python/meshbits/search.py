@@ -51,7 +51,7 @@ import numpy as np
 from . import model
 from .constants import MODEL_MIN_BITS, MODEL_MIN_VERTICES
 from .encode import Encoded, encode
-from .hausdorff import ClosestPoints, Reference
+from .hausdorff import ClosestPoints, Hausdorff, Reference
 from .mesh import as_mesh, referenced
 from .quantize import cube_grid
 from .results import Progress, ProgressCallback
@@ -1258,6 +1258,21 @@ def _box(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return used.min(axis=0), used.max(axis=0)
 
 
+def _measure_again(search: Search, record: Iteration, **asked: Any) -> Hausdorff:
+    """A result's encoded mesh measured against the original again, with ``asked`` (the
+    bounds :meth:`Reference.hausdorff` takes); timed with the search's measurements."""
+    encoded = search.encoded(record)
+    begin = time.perf_counter()
+    h = search.reference.hausdorff(
+        (encoded.vertices, encoded.faces),
+        samples=search.samples,
+        check=search.levels[record.level].source == "lod",
+        **asked,
+    )
+    search.seconds["hausdorff"] += time.perf_counter() - begin
+    return h
+
+
 def certify_answer(
     search: Search,
     tolerance: float,
@@ -1281,17 +1296,9 @@ def certify_answer(
             best = search.best()
             if best is None or best.measured_error_upper is not None:
                 break
-            encoded = search.encoded(best)
-            begin = time.perf_counter()
-            h = search.reference.hausdorff(
-                (encoded.vertices, encoded.faces),
-                samples=search.samples,
-                bounds=True,
-                tolerance=tolerance,
-                check=search.levels[best.level].source == "lod",
-                threshold=search.budget,
+            h = _measure_again(
+                search, best, bounds=True, tolerance=tolerance, threshold=search.budget
             )
-            search.seconds["hausdorff"] += time.perf_counter() - begin
             upper = float(h.upper if h.upper is not None else h.distance)
             checked = replace(
                 best,
@@ -1331,15 +1338,7 @@ def bound_answer(
     best = search.best() or search.closest()
     if best.measured_error_upper is not None:
         return best
-    encoded = search.encoded(best)
-    begin = time.perf_counter()
-    h = search.reference.hausdorff(
-        (encoded.vertices, encoded.faces),
-        samples=search.samples,
-        relative_tolerance=relative_tolerance,
-        check=search.levels[best.level].source == "lod",
-    )
-    search.seconds["hausdorff"] += time.perf_counter() - begin
+    h = _measure_again(search, best, relative_tolerance=relative_tolerance)
     bounded = replace(
         best,
         measured_error=max(best.measured_error, h.distance),
