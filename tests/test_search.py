@@ -49,6 +49,23 @@ def test_combined_error_lies_between_the_max_and_the_papers_sum(t, q):
     assert max(t, q) <= combined <= (1 + COMBINE_DELTA) * max(t, q) <= t + q + max(t, q)
 
 
+def test_a_pass_line_omits_a_bound_that_stopped_at_a_point_beyond_the_budget():
+    """The demo printed "error 0.003672 (certified <= 0.1148) ... misses the budget"."""
+    from meshbits.search import Iteration
+
+    common = dict(
+        level=1, source="vertices", bits=9, planned_vertices=1752, vertices=1752, faces=3000,
+        predicted_error=0.0034, predicted_size_bits=29984.0, measured_size_bits=29984,
+        seconds=0.1,
+    )  # fmt: skip
+    loose = Iteration(measured_error=0.003672, measured_error_upper=0.1148, met=False, **common)
+    assert "certified" not in str(loose) and str(loose).endswith("misses the budget")
+    tight = Iteration(measured_error=0.003445, measured_error_upper=0.003452, met=False, **common)
+    assert "certified <= 0.003452" in str(tight)
+    held = Iteration(measured_error=0.0033, measured_error_upper=0.0034, met=True, **common)
+    assert "certified <= 0.0034" in str(held)
+
+
 @pytest.mark.parametrize("bits", [6, 9, 12, 15])
 def test_the_quantization_error_of_the_original_is_what_the_model_says(bits):
     """A full-resolution mesh quantized to B bits measures c_Q S / (2^B - 1) from itself,

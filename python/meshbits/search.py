@@ -267,10 +267,13 @@ class Iteration:
 
     def __str__(self) -> str:
         upper = self.measured_error_upper
+        # A pass that missed its budget by a point beyond it stops refining there: its
+        # bound can be far above the error and says nothing (the line says it missed).
+        shown = upper is not None and (self.met or upper <= 2 * self.measured_error)
         return (
             f"pass: {self.source} mesh, B = {self.bits}, V = {self.vertices}; "
             f"error {self.measured_error:.4g}"
-            + ("" if upper is None else f" (certified <= {upper:.4g})")
+            + (f" (certified <= {upper:.4g})" if shown else "")
             + f" (model {self.predicted_error:.4g}) (mesh units), "
             f"{self.measured_size_bits // 8} bytes (model {self.predicted_size_bits / 8:.0f})"
             + ("" if self.met else ": misses the budget")
