@@ -28,7 +28,7 @@ import numpy as np
 from . import _core, model
 from .complexity import ShapeComplexity, shape_complexity
 from .constants import (
-    BOUNDS_RELATIVE_TOLERANCE,
+    ANSWER_RELATIVE_TOLERANCE,
     CERTIFY_TOLERANCE,
     DRACO_ALPHA,
     DRACO_CONNECTIVITY_BITS,
@@ -347,7 +347,7 @@ def compress(
     if certify and constraint == "error":
         certify_answer(search, CERTIFY_TOLERANCE * budget, max(2, max_iterations), progress)
     elif certify:
-        bound_answer(search, BOUNDS_RELATIVE_TOLERANCE, progress)
+        bound_answer(search, ANSWER_RELATIVE_TOLERANCE, progress)
     seconds |= search.seconds
 
     best = search.best()

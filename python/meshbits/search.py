@@ -176,6 +176,10 @@ AUTO_MARGIN = 0.97
 #: Meshes of at most this many vertices are cheap to encode whole.
 CHEAP_VERTICES = 100_000
 
+#: Largest number of refinement points a size or vertex budget's answer spends on its
+#: error bound, per direction (:func:`bound_answer`).
+ANSWER_REFINE_BUDGET = 1_000_000
+
 
 def quantization_error(bits: int, grid_size: float) -> float:
     """``E_Q(B) = c_Q S / (2^B - 1)`` (length): see the module docs."""
@@ -986,7 +990,7 @@ class Search:
         for _ in range(FIT_TRIES):
             if vertices < MODEL_MIN_VERTICES:
                 break
-            index = self._simplified(method, vertices=vertices)
+            index = self._simplified(method, vertices=vertices, aim=self._fit_aim(vertices))
             if index is None or index == 0:
                 break
             size = self._encoded(index, bits).size_bits
@@ -1000,6 +1004,22 @@ class Search:
                 aim *= FIT_AIM  # bytes per vertex grow as levels coarsen: aim lower
             vertices = count * aim * self.budget / size
         return fitting
+
+    def _fit_aim(self, vertices: float) -> float | None:
+        """Where a size budget's meshopt level locks the original vertices it strays from
+        (length): the tessellation error the built levels show at ``vertices`` (the
+        paper's Eq. 18 at half the error before any)."""
+        known = sorted(
+            (lv.vertex_count, self.tessellation(lv))
+            for lv in self.levels[1:]
+            if lv.method == "meshopt" and lv.quick is not None
+        )
+        if not known:
+            return 0.5 * self.k * self.grid_size / (3.0 * math.sqrt(3.0) * vertices)
+        inverse = sorted((float(v), 1.0 / t) for v, t in known if t > 0)
+        if not inverse:
+            return None
+        return 1.0 / _interpolate(inverse, vertices, inverse[0][1] / inverse[0][0])
 
     def _original_fits(self, bits: int) -> bool:
         original = self.levels[0]
@@ -1335,30 +1355,45 @@ def certify_answer(
 def bound_answer(
     search: Search, relative_tolerance: float, progress: ProgressCallback | None = None
 ) -> Iteration:
-    """The answer of a size or vertex budget (judged by bytes or vertices, not by its
-    error) with a certified upper bound on its error, refined until within
-    ``relative_tolerance`` of each direction's sampled maximum; the answer is unchanged."""
-    best = search.best() or search.closest()
-    if best.measured_error_upper is not None:
-        return best
-    h = _measure_again(search, best, relative_tolerance=relative_tolerance)
-    bounded = replace(
-        best,
-        measured_error=max(best.measured_error, h.distance),
-        measured_error_upper=float(h.upper if h.upper is not None else h.distance),
-    )
-    search.measurements[search.measurements.index(best)] = bounded
-    if progress is not None:
-        progress(
-            Progress(
-                "compress",
-                f"bound: B = {best.bits}, V = {best.vertices}; error "
-                f"{bounded.measured_error:.4g}, certified <= {bounded.measured_error_upper:.4g} "
-                "(mesh units)",
-                bounded,
-            )
+    """The answer of a size or vertex budget with a certified upper bound on its error,
+    refined until within ``relative_tolerance`` of each direction's sampled maximum. A
+    size budget's answer is the least error: when bounding it raises its error above
+    another result's sampled one, that result is bounded too, until the answer has its
+    bound (bounds are compared with bounds, not with samples, which only bound below).
+    A bound that does not converge within :data:`ANSWER_REFINE_BUDGET` points is not
+    kept (a result whose error is spread evenly, as quantization's is on a CAD part at
+    many bits, would refine nearly everywhere): the sampled error stands, as before."""
+    tried: set[int] = set()
+    while True:
+        best = search.best() or search.closest()
+        index = search.measurements.index(best)
+        if best.measured_error_upper is not None or index in tried:
+            return best
+        tried.add(index)
+        h = _measure_again(
+            search, best, relative_tolerance=relative_tolerance, refine_budget=ANSWER_REFINE_BUDGET
         )
-    return bounded
+        converged = bool(h.a_to_b.converged and h.b_to_a.converged)
+        bounded = replace(
+            best,
+            measured_error=max(best.measured_error, h.distance),
+            measured_error_upper=float(h.upper) if converged and h.upper is not None else None,
+        )
+        search.measurements[index] = bounded
+        if progress is not None:
+            outcome = (
+                f"certified <= {bounded.measured_error_upper:.4g}"
+                if bounded.measured_error_upper is not None
+                else f"no bound within {ANSWER_REFINE_BUDGET:,} refinement points"
+            )
+            progress(
+                Progress(
+                    "compress",
+                    f"bound: B = {best.bits}, V = {best.vertices}; error "
+                    f"{bounded.measured_error:.4g}, {outcome} (mesh units)",
+                    bounded,
+                )
+            )
 
 
 def run_search(search: Search, max_passes: int, progress: ProgressCallback | None = None) -> None:
