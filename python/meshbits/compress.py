@@ -258,8 +258,9 @@ def compress(
     certify
         Count an error budget as met only when a certified upper bound of the error
         (refined until it decides the budget) is within it (default). For a size or
-        vertex budget, bound the answer's error (``error_upper``) within 1% of its
-        sampled value; the answer is the same either way. The search explores
+        vertex budget, bound the answer's error (``error_upper``) within 5% of its
+        sampled value, or leave it unbounded when a million refinement points do not get
+        there (:func:`meshbits.search.bound_answer`). The search explores
         with sampled distances and certifies its answer, trying the next best when the
         bound exceeds the budget (:func:`meshbits.search.certify_answer`). ``False`` lets
         the sampled distance decide: faster, but a sample only bounds the error from

@@ -64,7 +64,7 @@ HAUSDORFF_REFINE_BUDGET = 20_000_000
 BOUNDS_RELATIVE_TOLERANCE = 0.01
 #: The same for the error of ``compress``'s answer to a size or vertex budget: looser, as
 #: a result whose error is quantization's, spread evenly over the surface, refines nearly
-#: everywhere (the fandisk at 16 kB: 64 s at 1%).
+#: everywhere (the fandisk at 16 kB: 63.6 s at 1%, on a shared machine).
 ANSWER_RELATIVE_TOLERANCE = 0.05
 #: Quantization grids: ``"cube"``, one step ``S / (2^B - 1)`` on every axis with ``S`` the
 #: largest box side (the paper, Draco, gltfpack); ``"axes"``, a step per axis.

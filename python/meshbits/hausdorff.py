@@ -489,11 +489,7 @@ def hausdorff(
     if samples is not None:
         samples = _check_count(samples, "samples")
     refine_budget = _check_count(refine_budget, "refine_budget")
-    tolerance = _check_tolerance(tolerance)
-    relative_tolerance = _check_tolerance(relative_tolerance, "relative_tolerance")
-    if tolerance is not None and relative_tolerance is not None:
-        raise MeshbitsError("give tolerance (a length) or relative_tolerance, not both")
-    bounds = bounds or tolerance is not None or relative_tolerance is not None
+    bounds, tolerance, relative_tolerance = _bounds_asked(bounds, tolerance, relative_tolerance)
 
     def say(line: str) -> None:
         if progress is not None:
@@ -555,6 +551,19 @@ def _symmetric(
         tolerance=tolerance,
         relative_tolerance=relative_tolerance,
     )
+
+
+def _bounds_asked(
+    bounds: bool, tolerance: Any, relative_tolerance: Any
+) -> tuple[bool, float | None, float | None]:
+    """``(bounds, tolerance, relative_tolerance)`` checked: at most one tolerance, and
+    either implies the bounds."""
+    tolerance = _check_tolerance(tolerance)
+    relative_tolerance = _check_tolerance(relative_tolerance, "relative_tolerance")
+    if tolerance is not None and relative_tolerance is not None:
+        raise MeshbitsError("give tolerance (a length) or relative_tolerance, not both")
+    wanted = bool(bounds) or tolerance is not None or relative_tolerance is not None
+    return wanted, tolerance, relative_tolerance
 
 
 def _check_tolerance(tolerance: Any, name: str = "tolerance") -> float | None:
@@ -637,11 +646,7 @@ class Reference:
             threshold = float(threshold)
             if not (math.isfinite(threshold) and threshold >= 0):
                 raise MeshbitsError(f"threshold must be finite and >= 0, got {threshold}")
-        tolerance = _check_tolerance(tolerance)
-        relative_tolerance = _check_tolerance(relative_tolerance, "relative_tolerance")
-        if tolerance is not None and relative_tolerance is not None:
-            raise MeshbitsError("give tolerance (a length) or relative_tolerance, not both")
-        bounds = bounds or tolerance is not None or relative_tolerance is not None
+        bounds, tolerance, relative_tolerance = _bounds_asked(bounds, tolerance, relative_tolerance)
         vertices, faces = as_mesh(candidate)
         tree = _core.build_tree(vertices, faces)
         if check:

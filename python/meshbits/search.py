@@ -1005,20 +1005,19 @@ class Search:
             vertices = count * aim * self.budget / size
         return fitting
 
-    def _fit_aim(self, vertices: float) -> float | None:
+    def _fit_aim(self, vertices: float) -> float:
         """Where a size budget's meshopt level locks the original vertices it strays from
         (length): the tessellation error the built levels show at ``vertices`` (the
         paper's Eq. 18 at half the error before any)."""
-        known = sorted(
-            (lv.vertex_count, self.tessellation(lv))
+        inverse = sorted(
+            (float(lv.vertex_count), 1.0 / t)
             for lv in self.levels[1:]
             if lv.method == "meshopt" and lv.quick is not None
+            for t in [self.tessellation(lv)]
+            if t > 0
         )
-        if not known:
-            return 0.5 * self.k * self.grid_size / (3.0 * math.sqrt(3.0) * vertices)
-        inverse = sorted((float(v), 1.0 / t) for v, t in known if t > 0)
         if not inverse:
-            return None
+            return 0.5 * self.k * self.grid_size / (3.0 * math.sqrt(3.0) * vertices)
         return 1.0 / _interpolate(inverse, vertices, inverse[0][1] / inverse[0][0])
 
     def _original_fits(self, bits: int) -> bool:
