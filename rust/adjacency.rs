@@ -63,6 +63,10 @@ fn vertex_hash(key: [u64; 3]) -> u64 {
     h.wrapping_mul(0x94D0_49BB_1331_11EB) ^ (h >> 29)
 }
 
+/// One chunk's vertices listed by weld partition: the partitions' starts, and each
+/// vertex's `(hash, index)` in partition order.
+type PartitionLists = (Vec<usize>, Vec<(u64, u32)>);
+
 /// Welds vertices whose three coordinates are exactly equal (`-0.0 == 0.0`).
 ///
 /// Triangle soups (STL files) repeat every shared vertex once per triangle; without
@@ -93,9 +97,11 @@ pub fn weld_identical(vertices: &[[f64; 3]]) -> Weld {
         .trailing_zeros();
     let parts = 1usize << part_bits;
     let part_of = |h: u64| (h >> 32 >> (32 - part_bits)) as usize;
-    // Each chunk lists its vertices by partition, in index order.
+    // Each chunk lists its vertices by partition, in index order, each with its hash: the
+    // partitions then read their lists in sequence and touch a vertex only when its hash
+    // matches an earlier one's.
     let chunk = n.div_ceil(4 * rayon::current_num_threads()).max(1 << 14);
-    let lists: Vec<(Vec<usize>, Vec<u32>)> = hashes
+    let lists: Vec<PartitionLists> = hashes
         .par_chunks(chunk)
         .enumerate()
         .map(|(c, hs)| {
@@ -107,10 +113,10 @@ pub fn weld_identical(vertices: &[[f64; 3]]) -> Weld {
                 start[p + 1] += start[p];
             }
             let mut cursor = start.clone();
-            let mut list = vec![0u32; hs.len()];
+            let mut list = vec![(0u64, 0u32); hs.len()];
             for (j, &h) in hs.iter().enumerate() {
                 let slot = &mut cursor[part_of(h)];
-                list[*slot] = (c * chunk + j) as u32;
+                list[*slot] = (h, (c * chunk + j) as u32);
                 *slot += 1;
             }
             (start, list)
@@ -119,25 +125,24 @@ pub fn weld_identical(vertices: &[[f64; 3]]) -> Weld {
     // Each partition, in index order: the pairs (vertex, earlier equal vertex).
     let merges: Vec<Vec<(u32, u32)>> = (0..parts)
         .into_par_iter()
-        .map_init(Vec::new, |slots: &mut Vec<u32>, p| {
+        .map_init(Vec::new, |slots: &mut Vec<(u64, u32)>, p| {
             let len: usize = lists.iter().map(|(s, _)| s[p + 1] - s[p]).sum();
             let capacity = (2 * len).next_power_of_two().max(16);
             let mask = capacity - 1;
             slots.clear();
-            slots.resize(capacity, u32::MAX);
+            slots.resize(capacity, (0, u32::MAX));
             let mut merges = Vec::new();
             for (start, list) in &lists {
-                for &i in &list[start[p]..start[p + 1]] {
-                    let h = hashes[i as usize];
-                    let k = key(&vertices[i as usize]);
+                for &(h, i) in &list[start[p]..start[p + 1]] {
                     let mut slot = (h as usize) & mask;
                     loop {
-                        let occupant = slots[slot];
+                        let (occupant_hash, occupant) = slots[slot];
                         if occupant == u32::MAX {
-                            slots[slot] = i;
+                            slots[slot] = (h, i);
                             break;
                         }
-                        if hashes[occupant as usize] == h && key(&vertices[occupant as usize]) == k
+                        if occupant_hash == h
+                            && key(&vertices[occupant as usize]) == key(&vertices[i as usize])
                         {
                             merges.push((i, occupant));
                             break;

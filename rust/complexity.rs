@@ -32,7 +32,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::adjacency::{BlockEdges, map_edge_blocks, weld_identical};
+use crate::adjacency::{BlockEdges, is_index_degenerate, map_edge_blocks, weld_identical};
 use crate::error::{MeshError, VertexIndex, check_extent, check_finite, check_indices};
 use crate::reduce::{SUM_CHUNK, deterministic_sum_parts};
 
@@ -85,8 +85,9 @@ pub enum EdgeKind {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EdgeGeometry {
     pub kind: EdgeKind,
-    /// Circumsphere radius (length); `∞` for flat and degenerate edges.
-    pub radius: f64,
+    /// `1 / r`, the circumsphere's curvature (1 / length); 0 for flat and degenerate
+    /// edges (`r = ∞`).
+    pub curvature: f64,
     /// `p(e)`, a third of the two triangles' areas (area).
     pub weight: f64,
     /// `|n1 × n2|²` and `-n1 · n2` for the normals `n1 = u × v`, `n2 = u × w`: the bending
@@ -142,7 +143,7 @@ fn classify(a: DVec3, b: DVec3, c: DVec3, d: DVec3, tol: &Thresholds) -> EdgeGeo
     let bend_cos = -n1.dot(n2);
     let mut g = EdgeGeometry {
         kind: EdgeKind::Degenerate,
-        radius: f64::INFINITY,
+        curvature: 0.0,
         // `(l1 + l2) / 6`; a product, as a division costs several.
         weight: (l1 + l2) * (1.0 / 6.0),
         bend_sin_squared: 0.0,
@@ -162,14 +163,17 @@ fn classify(a: DVec3, b: DVec3, c: DVec3, d: DVec3, tol: &Thresholds) -> EdgeGeo
         g.kind = EdgeKind::Flat;
         return g;
     }
-    // Centre offset `num / (2 det)`: one division for the reciprocal, then products. With
-    // `det = 0` (coplanar) or an overflowing reciprocal the sphere is a plane: `r = ∞`.
+    // Centre offset `num / (2 det)`, so `1 / r = 2 |det| / |num|`: one division. With
+    // `det = 0` (coplanar) the sphere is a plane: `r = ∞`.
     let vxw = v.cross(w);
     let det = u.dot(vxw);
-    let centre = (length_squared * vxw + v.length_squared() * w.cross(u) + w.length_squared() * n1)
-        * (1.0 / (2.0 * det));
-    if det != 0.0 && centre.is_finite() {
-        g.radius = centre.length();
+    let num = length_squared * vxw + v.length_squared() * w.cross(u) + w.length_squared() * n1;
+    let num_length = num.length();
+    if num_length > 0.0 {
+        let curvature = 2.0 * det.abs() / num_length;
+        if curvature.is_finite() {
+            g.curvature = curvature;
+        }
     }
     // min(φ, π - φ) < ill_angle  ⇔  sin φ < sin(ill_angle) (for ill_angle < π/2).
     let ill = tol.sin_ill * scale;
@@ -186,6 +190,13 @@ fn classify(a: DVec3, b: DVec3, c: DVec3, d: DVec3, tol: &Thresholds) -> EdgeGeo
 }
 
 impl EdgeGeometry {
+    /// Circumsphere radius `r` (length); `∞` for flat and degenerate edges.
+    #[inline]
+    #[must_use]
+    pub fn radius(&self) -> f64 {
+        1.0 / self.curvature
+    }
+
     /// Bending angle `φ = π - dihedral angle`, in `[0, π]` (radians); winding independent.
     #[inline]
     #[must_use]
@@ -206,7 +217,7 @@ impl EdgeGeometry {
     pub fn contribution(&self, estimator: Estimator) -> f64 {
         match (self.kind, estimator) {
             (EdgeKind::Curved | EdgeKind::IllConditioned, Estimator::Circumsphere)
-            | (EdgeKind::Curved, Estimator::Hybrid) => self.weight / self.radius,
+            | (EdgeKind::Curved, Estimator::Hybrid) => self.weight * self.curvature,
             (EdgeKind::Curved | EdgeKind::IllConditioned, _) => {
                 self.bending() * self.length() / 2.0
             }
@@ -256,66 +267,22 @@ fn point(vertices: &[[f64; 3]], i: u32) -> DVec3 {
     DVec3::from_array(vertices[i as usize])
 }
 
-/// What one pass over the faces measures: the total area, summed in the fixed chunks of
-/// [`crate::reduce::deterministic_sum`] (so the same to the bit as summing an array of
-/// face areas), the bounding box of the referenced vertices, and whether an index fell
-/// outside the vertices.
-struct FacePass {
-    area: f64,
-    bbox_min: [f64; 3],
-    bbox_max: [f64; 3],
-    bad_index: bool,
-}
-
-/// Area, box and index check in one parallel pass over the faces.
-fn face_pass<I: VertexIndex>(vertices: &[[f64; 3]], faces: &[[I; 3]]) -> FacePass {
-    let partial: Vec<(f64, DVec3, DVec3, bool)> = faces
+/// True when every face index lies in `0..vertex_count` (one parallel pass).
+fn indices_in_range<I: VertexIndex>(faces: &[[I; 3]], vertex_count: usize) -> bool {
+    faces
         .par_chunks(SUM_CHUNK)
-        .map(|chunk| {
-            let (mut lo, mut hi, mut bad) = (DVec3::INFINITY, DVec3::NEG_INFINITY, false);
-            let area = chunk
-                .iter()
-                .map(|f| {
-                    let (Some(a), Some(b), Some(c)) = (
-                        vertices.get(f[0].to_usize()),
-                        vertices.get(f[1].to_usize()),
-                        vertices.get(f[2].to_usize()),
-                    ) else {
-                        bad = true;
-                        return 0.0;
-                    };
-                    let (a, b, c) = (
-                        DVec3::from_array(*a),
-                        DVec3::from_array(*b),
-                        DVec3::from_array(*c),
-                    );
-                    lo = lo.min(a).min(b).min(c);
-                    hi = hi.max(a).max(b).max(c);
-                    (b - a).cross(c - a).length() / 2.0
-                })
-                .sum::<f64>();
-            (area, lo, hi, bad)
-        })
-        .collect();
-    let (mut lo, mut hi, mut bad) = (DVec3::INFINITY, DVec3::NEG_INFINITY, false);
-    for p in &partial {
-        lo = lo.min(p.1);
-        hi = hi.max(p.2);
-        bad |= p.3;
-    }
-    FacePass {
-        area: partial.iter().map(|p| p.0).sum(),
-        bbox_min: lo.to_array(),
-        bbox_max: hi.to_array(),
-        bad_index: bad,
-    }
+        .all(|c| c.iter().flatten().all(|i| i.to_usize() < vertex_count))
 }
 
-/// One block's share of the edge pass: its contributions in edge order, its class counts
-/// and, when asked for, its per-edge arrays.
+/// One block's share of the edge pass: its contributions in edge order, its class counts,
+/// its share of the total area (each incident face's `area / 3`, summed in edge order),
+/// the box of its edges' endpoints and, when asked for, its per-edge arrays.
 struct BlockTerms {
     contributions: Vec<f64>,
     count: [usize; 6],
+    area: f64,
+    box_min: DVec3,
+    box_max: DVec3,
     per_edge: Option<EdgeArrays>,
 }
 
@@ -328,6 +295,11 @@ const GATHER_BATCH: usize = 32;
 /// array: their loads miss the cache. They are read for a batch of edges first, loads that
 /// do not wait for one another, and the batch is then measured from the copies: the misses
 /// overlap instead of each stalling a long chain of arithmetic.
+///
+/// Every face that does not repeat a vertex index has three edges, so the total area is
+/// the sum over edges of a third of their incident faces' areas (an interior edge's
+/// `p(e)`), and the box of the referenced vertices is the box of the edges' endpoints:
+/// the edge pass measures both, without a pass of its own over the faces.
 fn block_terms(
     vertices: &[[f64; 3]],
     block: BlockEdges<'_>,
@@ -338,24 +310,44 @@ fn block_terms(
     let mut out = BlockTerms {
         contributions: Vec::with_capacity(block.len()),
         count: [0; 6],
+        area: 0.0,
+        box_min: DVec3::INFINITY,
+        box_max: DVec3::NEG_INFINITY,
         per_edge: per_edge.then(EdgeArrays::default),
     };
     let mut corners = [[DVec3::ZERO; 4]; GATHER_BATCH];
     for first in (0..block.len()).step_by(GATHER_BATCH) {
         let batch = first..(first + GATHER_BATCH).min(block.len());
         for (e, p) in batch.clone().zip(&mut corners) {
+            let [lo, hi] = block.edges[e];
+            p[0] = point(vertices, lo);
+            p[1] = point(vertices, hi);
             if let &[c, d] = block.incident(e) {
-                let [lo, hi] = block.edges[e];
-                *p = [lo, hi, c, d].map(|i| point(vertices, i));
+                p[2] = point(vertices, c);
+                p[3] = point(vertices, d);
             }
         }
         for (e, p) in batch.zip(&corners) {
+            out.box_min = out.box_min.min(p[0]).min(p[1]);
+            out.box_max = out.box_max.max(p[0]).max(p[1]);
             let incident = block.incident(e);
             let g = (incident.len() == 2).then(|| classify(p[0], p[1], p[2], p[3], tol));
             let kind = match &g {
-                Some(g) => g.kind,
-                None if incident.len() == 1 => EdgeKind::Boundary,
-                None => EdgeKind::NonManifold,
+                Some(g) => {
+                    out.area += g.weight;
+                    g.kind
+                }
+                None => {
+                    let u = p[1] - p[0];
+                    for &o in incident {
+                        out.area += u.cross(point(vertices, o) - p[0]).length() * (1.0 / 6.0);
+                    }
+                    if incident.len() == 1 {
+                        EdgeKind::Boundary
+                    } else {
+                        EdgeKind::NonManifold
+                    }
+                }
             };
             out.count[kind as usize] += 1;
             out.contributions
@@ -363,7 +355,7 @@ fn block_terms(
             if let Some(arrays) = &mut out.per_edge {
                 arrays.vertices.push(block.edges[e]);
                 arrays.kind.push(kind as u8);
-                arrays.radius.push(g.map_or(f64::NAN, |g| g.radius));
+                arrays.radius.push(g.map_or(f64::NAN, |g| g.radius()));
                 arrays.weight.push(g.map_or(f64::NAN, |g| g.weight));
             }
         }
@@ -374,10 +366,11 @@ fn block_terms(
 /// Shape complexity of a triangle mesh (paper Sec. 4.2). See the module docs for the math.
 /// Faces come as `u32` or `i64` indices ([`VertexIndex`]), checked here.
 ///
-/// Passes: the vertices' finiteness; the faces' indices, areas and box (one pass); the
-/// weld; then the edge table block by block ([`map_edge_blocks`]), each block's edges
-/// classified and measured while in cache. The result is the same to the bit for any
-/// number of threads: the area and K are sums in fixed chunks of the face and edge orders.
+/// Passes: the vertices' finiteness; the faces' indices; the weld; then the edge table
+/// block by block ([`map_edge_blocks`]), each block's edges classified and measured while
+/// in cache, with the area and the box. The result is the same to the bit for any number
+/// of threads: K is a sum in fixed chunks of the edge order, the area a sum over the
+/// blocks, each in edge order.
 pub fn shape_complexity<I: VertexIndex>(
     vertices: &[[f64; 3]],
     faces: &[[I; 3]],
@@ -400,8 +393,7 @@ pub fn shape_complexity<I: VertexIndex>(
     if !all_finite {
         check_finite(vertices)?;
     }
-    let pass = face_pass(vertices, faces);
-    if pass.bad_index {
+    if !indices_in_range(faces, vertices.len()) {
         check_indices(faces, vertices.len())?;
     }
     if merge_vertices {
@@ -413,37 +405,44 @@ pub fn shape_complexity<I: VertexIndex>(
                 .with_min_len(1 << 12)
                 .map(|f| [c[f[0].to_usize()], c[f[1].to_usize()], c[f[2].to_usize()]])
                 .collect();
-            let pass = face_pass(vertices, &remapped);
-            return edge_pass(
-                vertices,
-                &remapped,
-                pass,
-                weld.merged,
-                estimator,
-                per_edge,
-                tol,
-            );
+            return edge_pass(vertices, &remapped, weld.merged, estimator, per_edge, tol);
         }
     }
-    edge_pass(vertices, faces, pass, 0, estimator, per_edge, tol)
+    edge_pass(vertices, faces, 0, estimator, per_edge, tol)
 }
 
 /// The rest of [`shape_complexity`] on index-checked (and welded) faces.
 fn edge_pass<I: VertexIndex>(
     vertices: &[[f64; 3]],
     faces: &[[I; 3]],
-    pass: FacePass,
     merged_vertices: usize,
     estimator: Estimator,
     per_edge: bool,
     tol: &Tolerances,
 ) -> Result<Complexity, MeshError> {
-    let FacePass {
-        area,
-        bbox_min,
-        bbox_max,
-        ..
-    } = pass;
+    let tol = Thresholds::from(tol);
+    let (mut blocks, degenerate_faces) = map_edge_blocks(faces, vertices.len(), |block| {
+        block_terms(vertices, block, estimator, &tol, per_edge)
+    })?;
+    let area: f64 = blocks.iter().map(|b| b.area).sum();
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for b in &blocks {
+        lo = lo.min(b.box_min);
+        hi = hi.max(b.box_max);
+    }
+    if degenerate_faces > 0 {
+        // Faces that repeat an index have no edges; their vertices are referenced still.
+        for f in faces {
+            let t = f.map(|i| i.to_usize() as u32);
+            if is_index_degenerate(&t) {
+                for i in t {
+                    lo = lo.min(point(vertices, i));
+                    hi = hi.max(point(vertices, i));
+                }
+            }
+        }
+    }
+    let (bbox_min, bbox_max) = (lo.to_array(), hi.to_array());
     check_extent(bbox_min, bbox_max)?;
     if area.is_nan() || area <= 0.0 {
         return Err(MeshError::Empty(format!(
@@ -451,10 +450,6 @@ fn edge_pass<I: VertexIndex>(
             faces.len()
         )));
     }
-    let tol = Thresholds::from(tol);
-    let (mut blocks, degenerate_faces) = map_edge_blocks(faces, vertices.len(), |block| {
-        block_terms(vertices, block, estimator, &tol, per_edge)
-    })?;
     let contributions: Vec<Vec<f64>> = blocks
         .iter_mut()
         .map(|b| std::mem::take(&mut b.contributions))
@@ -532,7 +527,7 @@ mod tests {
         let d = DVec3::new(0.0, -0.6, -0.8);
         let g = edge_geometry(a, b, c, d, &tol());
         assert_eq!(g.kind, EdgeKind::Curved);
-        assert!((g.radius - 1.0).abs() < 1e-12, "{}", g.radius);
+        assert!((g.radius() - 1.0).abs() < 1e-12, "{}", g.radius());
     }
 
     #[test]
@@ -556,7 +551,42 @@ mod tests {
         let g1 = edge_geometry(a, b, c, d, &tol());
         let g2 = edge_geometry(b, a, d, c, &tol());
         assert!((g1.bending() - g2.bending()).abs() < 1e-14);
-        assert!((g1.radius - g2.radius).abs() < 1e-12 * g1.radius);
+        assert!((g1.radius() - g2.radius()).abs() < 1e-12 * g1.radius());
+    }
+
+    /// The area and box measured by the edge pass equal a plain pass over the faces, with
+    /// boundary and non-manifold edges, a repeated face, and a face that repeats an index
+    /// and is the only one to reference its far vertex.
+    #[test]
+    fn edge_pass_area_and_box_match_the_faces() {
+        let v = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.3, -0.7, 0.4],
+            [-2.0, 5.0, 9.0],
+        ];
+        let f: [[u32; 3]; 7] = [
+            [0, 2, 1],
+            [0, 1, 3],
+            [0, 3, 2],
+            [1, 2, 3],
+            [0, 1, 4],
+            [0, 1, 4],
+            [5, 5, 2],
+        ];
+        let c = shape_complexity(&v, &f, Estimator::Circumsphere, true, false, &tol()).unwrap();
+        let p = |i: u32| DVec3::from_array(v[i as usize]);
+        let area: f64 = f
+            .iter()
+            .map(|t| (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).length() / 2.0)
+            .sum();
+        assert!((c.area - area).abs() <= 1e-14 * area, "{} {area}", c.area);
+        assert_eq!(c.bbox_min, [-2.0, -0.7, 0.0]);
+        assert_eq!(c.bbox_max, [1.0, 5.0, 9.0]);
+        assert_eq!(c.degenerate_faces, 1);
+        assert_eq!(c.nonmanifold_edges, 1);
     }
 
     #[test]

@@ -257,12 +257,12 @@ def test_rerun_skips_what_is_done_and_force_redoes_it(tmp_path):
     out = tmp_path / "out"
     options = {"error": 0.01, "relative": True, "workers": 1}
     first = meshbits.batch(root, out, **options)
-    assert (first.compressed, first.resumed) == (2, 0)
+    assert (first.ran, first.resumed) == (2, 0)
     outputs = sorted(out.rglob("*.drc"))
     assert len(outputs) == 2
     written = {p: p.stat().st_mtime_ns for p in outputs}
     second = meshbits.batch(root, out, **options)
-    assert (second.compressed, second.resumed) == (0, 2)
+    assert (second.ran, second.resumed) == (0, 2)
     assert {p: p.stat().st_mtime_ns for p in outputs} == written  # not rewritten
     assert [r.finished for r in second.rows] == [r.finished for r in first.rows]
     assert second.backend == "none" and second.exit_code == 0
@@ -274,17 +274,17 @@ def test_rerun_skips_what_is_done_and_force_redoes_it(tmp_path):
     shutil.copy(DATA / "bunny_res4.ply", root / "suzanne.ply")
     (out / "sub" / "bunny.drc").unlink()
     third = meshbits.batch(root, out, **options)
-    assert (third.compressed, third.resumed) == (2, 0)
+    assert (third.ran, third.resumed) == (2, 0)
     other = meshbits.batch(root, out, **{**options, "seed": 1})
-    assert (other.compressed, other.resumed) == (2, 0)
+    assert (other.ran, other.resumed) == (2, 0)
 
     before = {p: p.stat().st_mtime_ns for p in outputs}
     forced = meshbits.batch(root, out, **{**options, "seed": 1}, force=True)
-    assert (forced.compressed, forced.resumed) == (2, 0)
+    assert (forced.ran, forced.resumed) == (2, 0)
     assert all(p.stat().st_mtime_ns != before[p] for p in outputs)  # rewritten
     assert len(report_rows(out)) == 2
     again = meshbits.batch(root, out, **{**options, "seed": 1})
-    assert (again.compressed, again.resumed) == (0, 2)
+    assert (again.ran, again.resumed) == (0, 2)
 
 
 def test_rows_of_other_inputs_and_cut_lines_are_kept_or_counted(tmp_path):
@@ -302,7 +302,7 @@ def test_unusable_inputs_are_tried_again(tmp_path, library):
     out = tmp_path / "out"
     meshbits.batch(library, out, error=0.01, relative=True, workers=1)
     again = meshbits.batch(library, out, error=0.01, relative=True, workers=1)
-    assert (again.resumed, again.compressed, again.unusable) == (2, 3, 3)
+    assert (again.resumed, again.ran, again.unusable) == (2, 3, 3)
 
 
 # --- exit codes and failures -------------------------------------------------------------
@@ -463,7 +463,7 @@ def test_ctrl_c_keeps_the_report_of_what_finished(tmp_path, monkeypatch, capsys,
     assert "interrupted" in captured.err and "2 not reached" in captured.out
     assert len(report_rows(out)) == 1
     totals = summary(out)
-    assert (totals["interrupted"], totals["compressed"], totals["not_reached"]) == (
+    assert (totals["interrupted"], totals["ran"], totals["not_reached"]) == (
         "True",
         "1",
         "2",
@@ -508,8 +508,8 @@ def test_sigint_stops_the_program_with_exit_130(tmp_path):
     assert 1 <= len(rows) < 8
     totals = summary(out)
     assert totals["interrupted"] == "True"
-    assert int(totals["compressed"]) == len(rows)
-    assert int(totals["compressed"]) + int(totals["not_reached"]) == 8
+    assert int(totals["ran"]) == len(rows)
+    assert int(totals["ran"]) + int(totals["not_reached"]) == 8
     # The rerun keeps what finished and does the rest.
     rerun = meshbits.batch(root, out, error=0.01, relative=True, workers=1)
-    assert (rerun.resumed, rerun.compressed, rerun.exit_code) == (len(rows), 8 - len(rows), 0)
+    assert (rerun.resumed, rerun.ran, rerun.exit_code) == (len(rows), 8 - len(rows), 0)

@@ -557,6 +557,10 @@ def test_cli_compress_and_info_on_a_scene(scene_file, tmp_path, capsys):
     info = json.loads(capsys.readouterr().out)
     assert info["extensions_used"] == ["KHR_draco_mesh_compression"]
     assert info["images"][0]["size"] == [128, 64]
+    # The parts, the JSON chunk and the GLB's three headers (28 bytes) make up the file,
+    # up to the padding of each buffer view (and of the binary chunk) to 4 bytes.
+    parts = sum(info["bytes_by_part"].values()) + info["json_bytes"] + 28
+    assert parts <= info["bytes"] == out.stat().st_size < parts + 4 * 16
     assert main(["compress", str(path), "--vertices", "100", "-o", str(out)]) == 2
     capsys.readouterr()
     # --error with a unit: glTF lengths are meters.
@@ -565,6 +569,25 @@ def test_cli_compress_and_info_on_a_scene(scene_file, tmp_path, capsys):
     )
     assert json.loads(capsys.readouterr().out)["budget"] == pytest.approx(0.01)
     assert main(["compress", str(path), "--error", "-1mm", "-o", str(out)]) == 2
+
+
+def test_a_scene_without_an_output_is_reported_as_a_scene(scene_file, tmp_path, capsys):
+    """Without -o a .glb input is compressed as -o x.glb would write it (per primitive,
+    the same bytes), and nothing is written."""
+    path, _ = scene_file
+    out = tmp_path / "written.glb"
+    common = ["compress", str(path), "--error", str(WORLD_ERROR), "--json", "--quiet"]
+    assert main([*common, "-o", str(out)]) == 0
+    written = json.loads(capsys.readouterr().out)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(common) == 0
+    dry = json.loads(capsys.readouterr().out)
+    assert dry["output"] is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert dry["size_bytes"] == written["size_bytes"] == out.stat().st_size
+    assert [r["bits"] for r in dry["primitives"]] == [r["bits"] for r in written["primitives"]]
+    assert main(["compress", str(path), "--vertices", "100"]) == 2
+    assert "merged into one" in capsys.readouterr().err
 
 
 def test_a_plain_mesh_to_glb_meets_what_compress_meets(tmp_path):

@@ -227,8 +227,9 @@ class BatchResult:
         Threads of the native kernels in each worker (0: the worker decides, Dask).
     inputs : int
         Distinct input files.
-    compressed, resumed : int
-        Inputs run by this call, and inputs kept from an earlier run.
+    ran, resumed : int
+        Inputs run by this call (whatever their status: an unusable input runs too), and
+        inputs kept from an earlier run.
     met, unmet, unusable, internal_errors : int
         Inputs by status (resumed rows included).
     not_reached : int
@@ -262,7 +263,7 @@ class BatchResult:
     workers: int
     kernel_threads: int
     inputs: int
-    compressed: int
+    ran: int
     resumed: int
     met: int
     unmet: int
@@ -1055,7 +1056,7 @@ def _summary_rows(result: BatchResult, started: str) -> list[tuple[str, Any]]:
         ("exit_code", result.exit_code),
         ("interrupted", result.interrupted),
         ("inputs", result.inputs),
-        ("compressed", result.compressed),
+        ("ran", result.ran),
         ("resumed", result.resumed),
         ("not_reached", result.not_reached),
         ("met", result.met),
@@ -1377,7 +1378,7 @@ def batch(
         workers=runner.workers if runner is not None else 0,
         kernel_threads=max(0, runner.threads) if runner is not None else 0,
         inputs=len(tasks),
-        compressed=len(finished),
+        ran=len(finished),
         resumed=len(resumed),
         met=statuses["met"],
         unmet=statuses["unmet"],

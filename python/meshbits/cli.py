@@ -389,7 +389,7 @@ def _run_compress(args: argparse.Namespace) -> int:
     _check_size_model(args)
     output = args.output
     suffix = output.suffix.lower() if output else ".drc"
-    if suffix in _SCENE_FORMATS:
+    if suffix in _SCENE_FORMATS or (output is None and _is_scene_file(args.mesh)):
         return _run_compress_scene(args)
     if args.codec != "draco":
         raise UserError("--codec applies to .glb and .gltf outputs")
@@ -494,14 +494,25 @@ def _run_compress(args: argparse.Namespace) -> int:
     return EXIT_OK if result.met else EXIT_UNMET
 
 
+def _is_scene_file(path: Path) -> bool:
+    """A .glb or .gltf input: compressed as a scene, as ``-o x.glb`` would write it."""
+    return path.suffix.lower() in _SCENE_FORMATS
+
+
 def _run_compress_scene(args: argparse.Namespace) -> int:
-    """compress to .glb / .gltf: the whole scene, primitive by primitive."""
+    """compress to .glb / .gltf (or, without ``-o``, a .glb / .gltf input, nothing
+    written): the whole scene, primitive by primitive."""
     from .scene import NORMAL_TOLERANCE_DEGREES, compress_scene
 
+    merged = (
+        " (-o x.drc or -o x.ply compresses the scene's meshes merged into one)"
+        if args.output is None
+        else ""
+    )
     if args.vertices is not None:
-        raise UserError("a scene takes --error or --size, not --vertices")
+        raise UserError("a scene takes --error or --size, not --vertices" + merged)
     if args.lods:
-        raise UserError("--lods applies to single meshes (.drc and .ply outputs)")
+        raise UserError("--lods applies to single meshes (.drc and .ply outputs)" + merged)
     unused = {
         "--samples": args.samples is not None,
         "--method": args.method != "auto",
@@ -514,7 +525,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     if given:
         raise UserError(
             f"{', '.join(given)} apply to single meshes (.drc and .ply outputs); a scene's "
-            "primitives are searched with meshoptimizer and their own sample counts"
+            "primitives are searched with meshoptimizer and their own sample counts" + merged
         )
     _output(args.output)
     _input(args.mesh)
@@ -540,15 +551,16 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     )
     payload = {
         "input": str(args.mesh),
-        "output": str(args.output),
+        "output": None if args.output is None else str(args.output),
         "budget_text": _budget_text(args),
         **result.to_dict(),
     }
     if args.json:
         _print_json(payload)
         return EXIT_OK if result.met else EXIT_UNMET
+    target = "(not written: use -o x.glb)" if args.output is None else str(args.output)
     print(
-        f"{args.mesh} -> {args.output} ({result.codec}): {result.input_bytes} -> "
+        f"{args.mesh} -> {target} ({result.codec}): {result.input_bytes} -> "
         f"{result.size_bytes} bytes; budget {_budget_text(args)}"
     )
     header = (
@@ -769,7 +781,7 @@ def _run_info(args: argparse.Namespace) -> int:
     if info["extensions_used"]:
         print(f"  extensions: {', '.join(info['extensions_used'])}")
     parts = ", ".join(f"{k} {v}" for k, v in info["bytes_by_part"].items())
-    print(f"  bytes by part: {parts}, JSON about {info['json_bytes']}")
+    print(f"  bytes by part: {parts}, JSON {info['json_bytes']}")
     for mesh in info["meshes"]:
         for prim in mesh["primitives"]:
             attributes = ", ".join(f"{k} ({v})" for k, v in prim["attributes"].items())

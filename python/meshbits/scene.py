@@ -1400,8 +1400,22 @@ def scene_info(path: str | Path) -> dict[str, Any]:
         "extensions_used": j.get("extensionsUsed", []),
         "extensions_required": j.get("extensionsRequired", []),
         "bytes_by_part": sizes,
-        "json_bytes": len(json.dumps(j)),
+        "json_bytes": _json_bytes(Path(path), j),
     }
+
+
+def _json_bytes(path: Path, document_json: dict) -> int:
+    """Bytes of a file's glTF JSON: a .gltf's own size, a .glb's JSON chunk (padding
+    included); for another format (converted on reading), the JSON as serialised here."""
+    suffix = path.suffix.lower()
+    if suffix == ".gltf":
+        return path.stat().st_size
+    if suffix == ".glb":
+        with open(path, "rb") as file:
+            header = file.read(20)
+        if len(header) == 20 and header[:4] == b"glTF" and header[16:20] == b"JSON":
+            return int.from_bytes(header[12:16], "little")
+    return len(json.dumps(document_json))
 
 
 def _dtype_name(component: int) -> Any:
