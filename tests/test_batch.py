@@ -145,7 +145,7 @@ def test_folder_mirrors_subfolders_and_records_the_corrupt_file(library, tmp_pat
     assert bunny["output"] == "animals/bunny.drc"
     assert bunny["output_bytes"] == (out / "animals" / "bunny.drc").stat().st_size
     assert bunny["input_bytes"] == (DATA / "bunny_res4.ply").stat().st_size
-    assert 0 < bunny["error"] <= bunny["budget"]
+    assert 0 < bunny["error"] <= bunny["error_upper"] <= bunny["budget"]
     assert bunny["bits"] >= 1 and bunny["vertices"] > 0
     assert len(bunny["input_sha256"]) == 64
     assert bunny["options"]["error"] == 0.01 and bunny["options"]["relative"] is True
@@ -179,7 +179,9 @@ def test_outputs_read_back_independently_within_the_budget(tmp_path, fmt):
         far = point_to_surface(vertices, source_v, source_f).max()
         assert far <= row.error * (1 + 1e-6) + 1e-12 * size
         assert far > 0  # quantized: the vertices did move
-        assert row.error <= row.budget
+        assert row.error_upper is not None
+        assert far <= row.error_upper * (1 + 1e-6) + 1e-12 * size
+        assert row.error <= row.error_upper <= row.budget
 
 
 def test_glob_input_relative_to_its_folder(tmp_path):

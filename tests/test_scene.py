@@ -401,6 +401,7 @@ def test_a_scene_round_trips_with_everything_kept(scene_file, tmp_path, codec):
     }[codec]
     assert required <= set(doc["extensionsRequired"])
     # Every attribute is still there, and decodes.
+    reports = {r.mesh: r for r in result.primitives}
     worlds = world_matrices(doc)
     source_worlds = world_matrices(source)
     for m, mesh in enumerate(doc["meshes"]):
@@ -418,7 +419,13 @@ def test_a_scene_round_trips_with_everything_kept(scene_file, tmp_path, codec):
                 (theirs, built["faces"][m]), (ours, decoded["indices"]), samples=100_000
             ).distance
             assert distance <= WORLD_ERROR * 1.05, (m, distance)
-    reports = {r.mesh: r for r in result.primitives}
+            # The certified bound covers what the independently decoded file measures.
+            bound = reports[m].world_error_upper
+            assert bound is not None and distance <= bound * (1 + 1e-9), (m, distance, bound)
+            assert reports[m].world_error <= bound <= WORLD_ERROR * (1 + 1e-12)
+    assert result.world_error_upper == max(
+        r.world_error_upper for r in result.primitives if r.world_error_upper is not None
+    )
     assert reports[0].instances == 2 and reports[0].scale == pytest.approx(2.0)
     assert all(r.met for r in result.primitives) and result.met
     assert result.size_bytes == out.stat().st_size
@@ -619,3 +626,12 @@ def test_the_progress_lines_give_the_vertex_counts_of_the_summary(tmp_path):
     )
     said = [int(m.group(1)) for line in lines for m in [re.search(r"V = (\d+),", line)] if m]
     assert said == [p.vertices for p in result.primitives], lines
+
+
+def test_without_certification_no_bound_is_reported(scene_file):
+    path, _ = scene_file
+    result = compress_scene(path, error=WORLD_ERROR, certify=False)
+    assert result.world_error_upper is None
+    compressed = [r for r in result.primitives if r.kept is None]
+    assert compressed and all(r.error_upper is None for r in compressed)
+    assert all(r.met == (r.world_error <= WORLD_ERROR * (1 + 1e-12)) for r in compressed)

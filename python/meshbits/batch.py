@@ -130,6 +130,9 @@ class BatchRow:
     error : float or None
         The measured Hausdorff error of the output (the file's length units; for a
         scene, the largest world-space error of its primitives).
+    error_upper : float or None
+        Its certified upper bound, in the same units (None when there is none: an error
+        budget's bound is refined until it decides the budget; see ``compress``).
     seconds : float
         Wall time of the task in its worker, reading and writing included (s).
     cpu_seconds : float or None
@@ -176,6 +179,7 @@ class BatchRow:
     input_vertices: int | None = None
     input_faces: int | None = None
     error: float | None = None
+    error_upper: float | None = None
     seconds: float = 0.0
     cpu_seconds: float | None = None
     input_sha256: str | None = None
@@ -662,6 +666,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
                 "faces": sum(p.faces for p in scene.primitives),
                 "input_vertices": sum(p.input_vertices for p in scene.primitives),
                 "error": scene.world_error,
+                "error_upper": scene.world_error_upper,
             }
         else:
             vertices, faces = load_mesh(path)
@@ -686,6 +691,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
                 "input_vertices": len(vertices),
                 "input_faces": len(faces),
                 "error": result.error,
+                "error_upper": result.error_upper,
             }
         row["output"] = task.output_relative
         row["status"] = "met" if row["met"] else "unmet"

@@ -576,6 +576,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         "V out",
         "bytes",
         "error (world)",
+        "bound (world)",
         "met",
     )
     rows = [
@@ -592,6 +593,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
             str(p.vertices),
             str(p.bytes),
             f"{p.world_error:.4g}",
+            "-" if p.world_error_upper is None else f"{p.world_error_upper:.4g}",
             "yes" if p.met else "no",
         )
         for p in result.primitives

@@ -517,13 +517,21 @@ class PrimitiveReport:
     normal_bits, uv_bits : int or None
         Bits of its normals (octahedral) and of its first UV set.
     input_vertices, vertices, faces : int
+        Vertices in, and vertices and faces of the decoded output. Draco's encoder splits
+        the vertices of non-manifold edges, so an output of every input vertex can have
+        more (Suzanne, with one edge of four faces: 507 in, 512 out of Draco at any B).
     bytes : int
         Its compressed geometry.
     error : float
-        Measured Hausdorff distance to the input primitive (its mesh's units).
+        Measured Hausdorff distance to the input primitive (its mesh's units): the sampled
+        maximum, raised by any larger distance the certification found (a lower bound).
     world_error : float
         ``error * scale``.
+    error_upper, world_error_upper : float or None
+        The certified upper bound on that distance (mesh units, and times ``scale``),
+        refined until it decides the primitive's budget; None with ``certify=False``.
     met : bool
+        Within its budget: by the certified bound, or with ``certify=False`` by ``error``.
     kept : str or None
         Why it was copied as it was, when it was (morph targets).
     """
@@ -545,6 +553,8 @@ class PrimitiveReport:
     world_error: float
     met: bool
     kept: str | None = None
+    error_upper: float | None = None
+    world_error_upper: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -559,12 +569,15 @@ class SceneResult:
     constraint : str
         ``"error"`` or ``"size"``.
     budget : float
-        World units for an error budget, bytes for a size budget.
+        World units for an error budget, bits for a size budget (as given).
     met : bool
     message : str
     codec : str
     world_error : float
         The largest world-space error of any primitive (world units).
+    world_error_upper : float or None
+        The largest certified bound of any primitive (world units); None with
+        ``certify=False``.
     size_bytes : int
         The written file (GLB; for ``.gltf``, the JSON plus its buffer).
     input_bytes : int
@@ -583,6 +596,7 @@ class SceneResult:
     primitives: tuple[PrimitiveReport, ...]
     seconds: float
     files: tuple[str, ...] = ()
+    world_error_upper: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out = {k: v for k, v in asdict(self).items() if k != "primitives"}
@@ -813,19 +827,22 @@ def compress_scene(
         def file_bytes(outcomes: list[tuple[Any, Encoding, Any]]) -> int:
             encodings = [o[1] for o in outcomes]
             if codec == "meshopt":
-                encodings, _ = _shared_grids(jobs, outcomes)
+                encodings, _, _ = _shared_grids(jobs, outcomes)
             return _write(document, jobs, encodings, codec, None)[1]
 
         outcomes, target_error = _split_size(jobs, budget, run_at, document, world_size, file_bytes)
     measured = [o[0].measured_error for o in outcomes]
+    uppers = [o[0].measured_error_upper if certify else None for o in outcomes]
     encodings = [o[1] for o in outcomes]
     if codec == "meshopt":
-        encodings, measured = _shared_grids(jobs, outcomes)
+        local_budgets = [target_error / job.scale for job in jobs] if certify else None
+        encodings, measured, uppers = _shared_grids(jobs, outcomes, local_budgets)
     files, size_bytes = _write(document, jobs, encodings, codec, output)
     reports = []
-    for job, (record, _, _), encoding, error_measured in zip(
-        jobs, outcomes, encodings, measured, strict=True
+    for job, (record, _, _), encoding, error_measured, upper in zip(
+        jobs, outcomes, encodings, measured, uppers, strict=True
     ):
+        local_budget = target_error / job.scale * (1 + 1e-12)
         reports.append(
             PrimitiveReport(
                 mesh=job.data.mesh,
@@ -845,7 +862,11 @@ def compress_scene(
                 bytes=encoding.size_bits // 8,
                 error=error_measured,
                 world_error=error_measured * job.scale,
-                met=error_measured <= target_error / job.scale * (1 + 1e-12),
+                met=error_measured <= local_budget
+                if not certify
+                else upper is not None and upper <= local_budget,
+                error_upper=upper,
+                world_error_upper=None if upper is None else upper * job.scale,
             )
         )
     for data in kept:
@@ -868,20 +889,31 @@ def compress_scene(
                 world_error=0.0,
                 met=True,
                 kept="morph targets" if data.morph else "no faces",
+                error_upper=0.0 if certify else None,
+                world_error_upper=0.0 if certify else None,
             )
         )
     world_error = max(r.world_error for r in reports)
+    bounds = [r.world_error_upper for r in reports]
+    bound = ""
+    world_error_upper = (
+        None
+        if not certify or any(b is None for b in bounds)
+        else max(b for b in bounds if b is not None)
+    )
+    if world_error_upper is not None:
+        bound = f" (certified <= {world_error_upper:.4g})"
     if given[0] == "error":
         met = all(r.met for r in reports)
         message = (
             f"{'met' if met else 'could not meet'} the world-space error budget of "
-            f"{budget:.6g}: largest error {world_error:.4g}, {size_bytes} bytes"
+            f"{budget:.6g}: largest error {world_error:.4g}{bound}, {size_bytes} bytes"
         )
     else:
         met = size_bytes <= budget / 8
         message = (
             f"{'met' if met else 'could not meet'} the size budget of {budget / 8:.6g} bytes: "
-            f"{size_bytes} bytes, largest world-space error {world_error:.4g}"
+            f"{size_bytes} bytes, largest world-space error {world_error:.4g}{bound}"
         )
     return SceneResult(
         constraint=given[0],
@@ -895,18 +927,24 @@ def compress_scene(
         primitives=tuple(reports),
         seconds=time.perf_counter() - start,
         files=tuple(files),
+        world_error_upper=world_error_upper,
     )
 
 
-def _shared_grids(jobs: list[_Job], outcomes) -> tuple[list[Encoding], list[float]]:
+def _shared_grids(
+    jobs: list[_Job], outcomes, budgets: list[float] | None = None
+) -> tuple[list[Encoding], list[float], list[float | None]]:
     """meshopt: the primitives of one mesh share one dequantization (their nodes'), so
     they are quantized again on one cube grid over their boxes, with the bits whose step
-    is at most the finest any of them chose; and measured again."""
+    is at most the finest any of them chose; and measured again (with ``budgets``, one per
+    job, certified again against them). Returns the encodings, their errors and their
+    certified bounds (None where not certified)."""
     by_mesh: dict[int, list[int]] = {}
     for i, job in enumerate(jobs):
         by_mesh.setdefault(job.data.mesh, []).append(i)
     encodings = [o[1] for o in outcomes]
     measured = [o[0].measured_error for o in outcomes]
+    uppers = [o[0].measured_error_upper for o in outcomes]
     for members in by_mesh.values():
         if len(members) == 1 and not jobs[members[0]].data.skinned:
             encodings[members[0]].bits = outcomes[members[0]][0].bits
@@ -936,9 +974,21 @@ def _shared_grids(jobs: list[_Job], outcomes) -> tuple[list[Encoding], list[floa
             )
             encoding.bits = bits
             assert job.reference is not None
-            measured[i] = job.reference.hausdorff((encoding.vertices, encoding.faces)).distance
+            mesh = (encoding.vertices, encoding.faces)
+            if budgets is None:
+                measured[i] = job.reference.hausdorff(mesh).distance
+                uppers[i] = None
+            else:
+                h = job.reference.hausdorff(
+                    mesh,
+                    bounds=True,
+                    tolerance=CERTIFY_TOLERANCE * budgets[i],
+                    threshold=budgets[i],
+                )
+                measured[i] = h.distance
+                uppers[i] = float(h.upper) if h.upper is not None else None
             encodings[i] = encoding
-    return encodings, measured
+    return encodings, measured, uppers
 
 
 def _file_bytes(path: Path, document: Document) -> int:
