@@ -28,6 +28,13 @@
 //!   found for the three corners. It is exact when the corners share their nearest
 //!   triangle, which the Lipschitz bound never is on flat, parallel pieces.
 //!
+//! * *Split*: when the corners' target triangles `t_i`, `t_j` share an edge, the plane
+//!   through that edge (perpendicular to their mean plane) cuts `T` into two convex
+//!   pieces, each bounded by the convex bound of its own triangle, evaluated at the
+//!   piece's vertices (corners and the crossings of `T`'s edges with the plane). A piece
+//!   straddling the edge of two nearly coplanar triangles, as on the flat faces of a CAD
+//!   part, gets about its height above them.
+//!
 //! The largest bound over the source triangles bounds `h(A, B)` from above; the sampled
 //! maximum (the largest exact distance of any point evaluated) bounds it from below. With
 //! a tolerance `τ`, each triangle whose bound exceeds `lower + τ` is split at its edge
@@ -51,7 +58,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::bvh::{SearchStack, TriangleTree, coherent_order};
-use crate::closest::covering_radius;
+use crate::closest::{PreparedTriangle, covering_radius};
 use crate::error::{MAX_EXTENT, MeshError, check_finite, check_indices};
 use crate::reduce::deterministic_sum;
 use crate::sampling::{SurfaceSamples, local_corners, surface_samples};
@@ -286,16 +293,26 @@ impl Cell {
                 upper: margin(lipschitz),
             };
         }
-        let mut convex = f64::INFINITY;
+        let mut convex2 = f64::INFINITY;
         for (k, &s) in slot.iter().enumerate() {
             if slot[..k].contains(&s) {
                 continue;
             }
             let t = tree.triangle(s);
             let worst = v.iter().map(|&p| t.closest(p).1).fold(0.0, f64::max);
-            convex = convex.min(worst.sqrt());
+            convex2 = convex2.min(worst);
         }
-        let upper = lipschitz.min(convex);
+        if margin(convex2.sqrt()) > settle {
+            for (i, j) in [(0, 1), (1, 2), (0, 2)] {
+                if slot[i] != slot[j]
+                    && let Some(worst) =
+                        split_bound(&v, tree.triangle(slot[i]), tree.triangle(slot[j]))
+                {
+                    convex2 = convex2.min(worst);
+                }
+            }
+        }
+        let upper = lipschitz.min(convex2.sqrt());
         Cell {
             v,
             d,
@@ -304,6 +321,68 @@ impl Cell {
             upper: margin(upper),
         }
     }
+}
+
+/// The *split* bound (squared, length²) of a cell `v` against two target triangles that
+/// share an edge: `max over the cell of d(·, B)²`, at most `max(d(·, t_i)², d(·, t_j)²)`
+/// taken part by part. The plane through the shared edge, perpendicular to the
+/// triangles' mean plane, cuts the cell into two convex pieces; on `t_i`'s side
+/// `d(·, B) ≤ d(·, t_i)`, a convex function, whose maximum over the piece is at one of its
+/// vertices (cell corners on that side and the points where the cell's edges cross the
+/// plane), and the same on `t_j`'s side. It holds for any plane; through the shared edge,
+/// a cell that straddles the edge of two nearly coplanar triangles gets about its height
+/// above them, where each triangle alone bounds it by its reach beyond the edge. None when
+/// the triangles share no edge.
+fn split_bound(v: &[DVec3; 3], ti: &PreparedTriangle, tj: &PreparedTriangle) -> Option<f64> {
+    let (ci, cj) = (ti.corners(), tj.corners());
+    // Corners are recomputed as `a + ab`: equal up to rounding of the coordinates.
+    let tolerance =
+        1e-20 * (ti.a.length_squared() + ti.ab.length_squared() + ti.ac.length_squared());
+    let mut shared = [DVec3::ZERO; 2];
+    let mut count = 0;
+    let mut third = None;
+    for &a in &ci {
+        if cj.iter().any(|&b| (a - b).length_squared() <= tolerance) {
+            if count < 2 {
+                shared[count] = a;
+            }
+            count += 1;
+        } else {
+            third = Some(a);
+        }
+    }
+    let third = third?;
+    if count != 2 {
+        return None;
+    }
+    let (ni, nj) = (ti.ab.cross(ti.ac), tj.ab.cross(tj.ac));
+    let nj = if ni.dot(nj) < 0.0 { -nj } else { nj };
+    let normal = (shared[1] - shared[0]).cross(ni.normalize_or_zero() + nj.normalize_or_zero());
+    if normal.length_squared() == 0.0 {
+        return None;
+    }
+    let orient = if (third - shared[0]).dot(normal) >= 0.0 {
+        1.0
+    } else {
+        -1.0
+    };
+    let side = v.map(|p| orient * (p - shared[0]).dot(normal));
+    let mut worst = 0.0_f64;
+    for k in 0..3 {
+        if side[k] >= 0.0 {
+            worst = worst.max(ti.closest(v[k]).1);
+        }
+        if side[k] <= 0.0 {
+            worst = worst.max(tj.closest(v[k]).1);
+        }
+    }
+    for (a, b) in [(0, 1), (1, 2), (2, 0)] {
+        if (side[a] > 0.0 && side[b] < 0.0) || (side[a] < 0.0 && side[b] > 0.0) {
+            let cut = v[a] + (v[b] - v[a]) * (side[a] / (side[a] - side[b]));
+            worst = worst.max(ti.closest(cut).1).max(tj.closest(cut).1);
+        }
+    }
+    Some(worst)
 }
 
 /// A refinement point's outcome: the recorded upper bound on its distance and the target
@@ -846,6 +925,67 @@ mod tests {
         }
         let other = surface_samples(&va, &fa[1..], DVec3::ZERO, 100, 1).unwrap();
         assert!(directed_from_samples(&va, &fa, &other, &targets[0], &opts).is_err());
+    }
+
+    /// The split bound is never below the true maximum over the cell of the distance to
+    /// the two triangles (a dense barycentric grid of the cell, brute force), and on a
+    /// cell straddling the shared edge of two coplanar triangles it is the cell's height.
+    #[test]
+    fn split_bound_holds_and_is_tight_over_a_flat_edge() {
+        use crate::closest::closest_point_on_triangle;
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut checked = 0;
+        for _ in 0..300 {
+            let p = |n: &mut dyn FnMut() -> f64| DVec3::new(n(), n(), n());
+            let (a, b) = (p(&mut next), p(&mut next));
+            let (c, d) = (p(&mut next), p(&mut next));
+            let (ti, tj) = (
+                PreparedTriangle::new(a, b, c),
+                PreparedTriangle::new(b, a, d),
+            );
+            let cell = [p(&mut next), p(&mut next), p(&mut next)];
+            let Some(bound) = split_bound(&cell, &ti, &tj) else {
+                continue;
+            };
+            checked += 1;
+            let n = 24;
+            for i in 0..=n {
+                for j in 0..=n - i {
+                    let (u, w) = (f64::from(i) / f64::from(n), f64::from(j) / f64::from(n));
+                    let q = cell[0] * (1.0 - u - w) + cell[1] * u + cell[2] * w;
+                    let d2 = closest_point_on_triangle(q, a, b, c)
+                        .1
+                        .min(closest_point_on_triangle(q, b, a, d).1);
+                    assert!(d2 <= bound * (1.0 + 1e-12) + 1e-15, "{d2} > {bound}");
+                }
+            }
+        }
+        assert!(checked > 250, "{checked}");
+        // Two coplanar triangles (a square split on its diagonal) and a cell 0.01 above
+        // that crosses the diagonal: each triangle alone bounds it by its reach beyond
+        // the diagonal, the split bound by its height.
+        let (a, b) = (DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 1.0, 0.0));
+        let (c, d) = (DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0));
+        let (ti, tj) = (
+            PreparedTriangle::new(a, b, c),
+            PreparedTriangle::new(b, a, d),
+        );
+        let h = 0.01;
+        let cell = [
+            DVec3::new(0.2, 0.6, h),
+            DVec3::new(0.6, 0.2, h),
+            DVec3::new(0.7, 0.8, h),
+        ];
+        let bound = split_bound(&cell, &ti, &tj).expect("they share an edge");
+        assert!((bound.sqrt() - h).abs() < 1e-12, "{}", bound.sqrt());
+        let alone = cell.iter().map(|&q| ti.closest(q).1).fold(0.0, f64::max);
+        assert!(alone.sqrt() > 0.1, "{}", alone.sqrt());
     }
 
     #[test]
