@@ -156,6 +156,28 @@ def test_a_broken_input_to_a_scene_output_names_the_file(tmp_path, capsys, conte
     assert "noise.glb" in capsys.readouterr().err
 
 
+def test_a_truncated_glb_is_worded_alike_by_every_command(tmp_path, capsys):
+    import struct
+
+    import trimesh
+
+    scene = trimesh.creation.icosphere(3)
+    whole = tmp_path / "whole.glb"
+    whole.write_bytes(trimesh.exchange.gltf.export_glb(trimesh.Scene(scene)))
+    data = whole.read_bytes()
+    assert struct.unpack("<I", data[8:12])[0] == len(data)
+    cut = tmp_path / "cut.glb"
+    cut.write_bytes(data[: len(data) // 2])
+    messages = set()
+    for argv in (["info"], ["k"], ["compress", "--error", "0.01"]):
+        assert main([argv[0], str(cut), *argv[1:]]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1, err
+        messages.add(err.split(": error: ", 1)[1])
+    assert len(messages) == 1, messages
+    assert f"declares {len(data):,} bytes but the file has {len(data) // 2:,}" in messages.pop()
+
+
 def test_an_error_with_a_unit_on_a_file_without_units_says_how_it_is_read(tmp_path, capsys):
     out = str(tmp_path / "x.drc")
     assert main(["compress", str(DATA / "suzanne.ply"), "--error", "1cm", "-o", out]) in (0, 1)

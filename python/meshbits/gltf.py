@@ -481,7 +481,10 @@ def _from_glb(data: bytes, base: Path | None) -> Document:
     if version != 2:
         raise MeshFileError(f"GLB version {version}, not 2")
     if length > len(data):
-        raise MeshFileError(f"the GLB header says {length} bytes, the file has {len(data)}")
+        raise MeshFileError(
+            f"the GLB header declares {length:,} bytes but the file has {len(data):,}: "
+            "truncated or damaged"
+        )
     offset, document, binary = 12, None, b""
     while offset + 8 <= length:
         chunk_length, kind = struct.unpack("<II", data[offset : offset + 8])
