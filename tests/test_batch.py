@@ -416,6 +416,10 @@ def test_progress_bar_shows_eta_and_bytes_saved(tmp_path, capsys):
     assert "saved" in err and "kB" in err
 
 
+# distributed's HTTP server start retries a port with a socket it leaves to the garbage
+# collector (a ResourceWarning, seen once under load): with warnings as errors the
+# cluster then fails to start. The warning is distributed's, not a meshbits leak.
+@pytest.mark.filterwarnings("ignore::ResourceWarning")
 def test_dask_local_cluster(tmp_path, capsys):
     # CI installs ".[test]", which pulls dask[distributed]: this runs there.
     pytest.importorskip("distributed")

@@ -282,10 +282,11 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
         "compress",
         help="simplify + quantize + encode a mesh to meet a budget (paper Sec. 7)",
         description="Compute K, solve for B and V, simplify to V, quantize to B bits, encode "
-        "with Draco, measure the Hausdorff error and the real size; adjust and repeat until "
-        "the budget is met. Exit code 0 when it is met, 1 when it cannot be (the closest "
-        "result is reported, and written with -o), 2 on bad input. Without -o nothing is "
-        "written.",
+        "(Draco, or with -o x.glb/.gltf Draco or meshopt per primitive), measure the "
+        "Hausdorff error and the real size; adjust and repeat until the budget is met. Exit "
+        "code 0 when it is met, 1 when it cannot be (the closest result is reported, and "
+        "written with -o), 2 on bad input. Without -o nothing is written; a .glb/.gltf input "
+        "without -o is reported per primitive, as -o x.glb would write it.",
     )
     p.add_argument("mesh", type=Path, help="mesh file (OBJ, PLY, STL, OFF, GLB, ...)")
     budget = p.add_mutually_exclusive_group(required=True)
@@ -311,7 +312,8 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
         help="output file: .glb or .gltf (the whole scene, every attribute, material and "
         "node kept, compressed with --codec), .drc (Draco, one merged mesh), .ply (quantized "
         "PLY); .obj/.off/.stl through trimesh (not with --size: their size is not what "
-        "the loop measures). Without it nothing is written.",
+        "the loop measures). Without it nothing is written (a .glb/.gltf input is then "
+        "reported as a scene).",
     )
     p.add_argument(
         "--codec",

@@ -28,7 +28,13 @@ import numpy as np
 
 from . import _core
 from .complexity import shape_complexity
-from .constants import CERTIFY_TOLERANCE, DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, FORMAT_MAX_BITS
+from .constants import (
+    ANSWER_RELATIVE_TOLERANCE,
+    CERTIFY_TOLERANCE,
+    DRACO_ALPHA,
+    DRACO_CONNECTIVITY_BITS,
+    FORMAT_MAX_BITS,
+)
 from .errors import MeshbitsError, MeshFileError
 from .gltf import (
     COMPONENT_TYPES,
@@ -44,7 +50,14 @@ from .hausdorff import Reference, default_samples
 from .io import write_atomic
 from .quantize import precision_bits
 from .results import Progress, ProgressCallback
-from .search import BASE_FACES, Attributes, Search, certify_answer, run_search
+from .search import (
+    BASE_FACES,
+    Attributes,
+    Search,
+    bound_answer,
+    certify_answer,
+    run_search,
+)
 
 __all__ = [
     "CODECS",
@@ -79,7 +92,19 @@ SCENE_SAMPLES = 100_000
 SCENE_PASSES = 6
 
 #: Passes of the size split: common world errors tried.
-SIZE_SPLIT_PASSES = 5
+SIZE_SPLIT_PASSES = 8
+
+#: Searches of a lone primitive's size budget (each after the file was over) and the
+#: bytes kept to spare when its share shrinks.
+SIZE_ONE_TRIES = 3
+SIZE_ONE_MARGIN = 16
+
+#: The size split stops at a file of at least this fraction of the budget.
+SIZE_SPLIT_FILL = 0.97
+
+#: The size split aims at this fraction of the budget (measured sizes scatter around the
+#: log-log line).
+SIZE_SPLIT_AIM = 0.985
 
 
 # --- attribute bits ---------------------------------------------------------------------
@@ -599,7 +624,10 @@ class SceneResult:
     world_error_upper: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON-ready; a size budget is also given in bytes (``budget_bytes``), as
+        :class:`meshbits.CompressResult` does."""
         out = {k: v for k, v in asdict(self).items() if k != "primitives"}
+        out["budget_bytes"] = self.budget / 8 if self.constraint == "size" else None
         out["primitives"] = [p.to_dict() for p in self.primitives]
         return out
 
@@ -637,11 +665,17 @@ def _attribute_weights(names: list[str], budget: float, bits: AttributeBits) -> 
 
 
 def _search_primitive(
-    job: _Job, budget: float, codec: str, seed: int, certify: bool
+    job: _Job,
+    budget: float,
+    codec: str,
+    seed: int,
+    certify: bool,
+    constraint: str = "error",
 ) -> tuple[Any, Encoding, Any]:
-    """The fewest bytes of one primitive within a local error budget (cached)."""
-    if (budget, certify) in job.results:
-        return job.results[(budget, certify)]
+    """The fewest bytes of one primitive within a local error budget, or with
+    ``constraint="size"`` the least error within ``budget`` bits of its own (cached)."""
+    if (constraint, budget, certify) in job.results:
+        return job.results[(constraint, budget, certify)]
     data = job.data
     original = (data.positions, data.faces)
     if job.reference is None:
@@ -680,7 +714,7 @@ def _search_primitive(
     search = Search(
         original,
         job.reference,
-        constraint="error",
+        constraint=constraint,
         budget=budget,
         k=job.k,
         grid_size=job.grid_size,
@@ -694,11 +728,13 @@ def _search_primitive(
         codec=encode,
     )
     run_search(search, SCENE_PASSES)
-    if certify:
+    if certify and constraint == "error":
         certify_answer(search, CERTIFY_TOLERANCE * budget, SCENE_PASSES)
+    elif certify:
+        bound_answer(search, ANSWER_RELATIVE_TOLERANCE)
     chosen = search.best() or search.closest()
     outcome = (chosen, search.encoded(chosen), search.levels[chosen.level])
-    job.results[(budget, certify)] = outcome
+    job.results[(constraint, budget, certify)] = outcome
     return outcome
 
 
@@ -830,7 +866,14 @@ def compress_scene(
                 encodings, _, _ = _shared_grids(jobs, outcomes)
             return _write(document, jobs, encodings, codec, None)[1]
 
-        outcomes, target_error = _split_size(jobs, budget, run_at, document, world_size, file_bytes)
+        if len(jobs) == 1:
+            outcomes, target_error = _size_one(
+                jobs[0], budget, _fixed_bytes(document, jobs), codec, seed, certify, file_bytes
+            )
+        else:
+            outcomes, target_error = _split_size(
+                jobs, budget, run_at, document, world_size, file_bytes
+            )
     measured = [o[0].measured_error for o in outcomes]
     uppers = [o[0].measured_error_upper if certify else None for o in outcomes]
     encodings = [o[1] for o in outcomes]
@@ -862,9 +905,9 @@ def compress_scene(
                 bytes=encoding.size_bits // 8,
                 error=error_measured,
                 world_error=error_measured * job.scale,
-                met=error_measured <= local_budget
-                if not certify
-                else upper is not None and upper <= local_budget,
+                met=upper <= local_budget
+                if certify and upper is not None
+                else error_measured <= local_budget and (not certify or given[0] == "size"),
                 error_upper=upper,
                 world_error_upper=None if upper is None else upper * job.scale,
             )
@@ -1027,10 +1070,14 @@ def _world_size(
 
 def _split_size(jobs, size_bits, run_at, document, world_size, file_bytes):
     """The common world-space error whose primitives fill the size budget: the split of
-    bytes that minimises the scene's largest error, found on a log scale from measured
-    sizes (bytes fall about as 1/E). Each try is judged by the bytes of the file it makes
-    (``file_bytes``: the document rebuilt around it, images, JSON and the codec's own
-    entries included); the primitives' share of the budget is what the rest leaves."""
+    bytes that minimises the scene's largest error. Each try is judged by the bytes of the
+    file it makes (``file_bytes``: the document rebuilt around it, images, JSON and the
+    codec's own entries included). The next error comes from the sizes measured so far,
+    bytes against error on a log-log scale: the line through the two tries that bracket
+    the budget, or through the last two (bytes fall about as 1/E) until they do. It stops
+    when a file fills :data:`SIZE_SPLIT_FILL` of the budget, when the bracket is within 2%,
+    or after :data:`SIZE_SPLIT_PASSES` tries. The answer is the try within the budget with
+    the least measured world-space error (not the least target)."""
     fixed = _fixed_bytes(document, jobs)
     budget_bytes = size_bits / 8
     if budget_bytes - fixed <= 0:
@@ -1038,30 +1085,93 @@ def _split_size(jobs, size_bits, run_at, document, world_size, file_bytes):
             f"the size budget ({budget_bytes:.6g} bytes) does not hold the scene's images and "
             f"other data ({fixed} bytes)"
         )
+    aim = SIZE_SPLIT_AIM * budget_bytes
     error = 0.002 * world_size
-    best = None
-    tried = []
+    best = None  # (measured world error, outcomes, target error)
+    tried: list[tuple[float, int]] = []
     for _ in range(SIZE_SPLIT_PASSES):
         outcomes = run_at(error)
-        primitives = sum(o[1].size_bits // 8 for o in outcomes)
         total = file_bytes(outcomes)
         tried.append((error, total))
-        if total <= budget_bytes and (best is None or error < best[1]):
-            best = (outcomes, error)
-        fitting = [e for e, t in tried if t <= budget_bytes]
-        over = [e for e, t in tried if t > budget_bytes]
-        if fitting and over:
-            lo, hi = min(fitting), max(over)
-            if lo / hi < 1.05:
+        if total <= budget_bytes:
+            measured = max(
+                o[0].measured_error * job.scale for o, job in zip(outcomes, jobs, strict=True)
+            )
+            if best is None or measured < best[0]:
+                best = (measured, outcomes, error)
+            if total >= SIZE_SPLIT_FILL * budget_bytes:
                 break
-            error = math.sqrt(lo * hi)
+        fitting = [(e, t) for e, t in tried if t <= budget_bytes]
+        over = [(e, t) for e, t in tried if t > budget_bytes]
+        if fitting and over:
+            e_fit, t_fit = min(fitting)  # the finest try that fits
+            e_over, t_over = max(over)  # the coarsest try over the budget
+            if e_fit / e_over < 1.02:
+                break
+            bracket = (min(e_fit, e_over), max(e_fit, e_over))
+            error = _log_line(e_fit, t_fit, e_over, t_over, aim, inside=bracket)
+        elif len(tried) >= 2:
+            (e0, t0), (e1, t1) = tried[-2], tried[-1]
+            error = _log_line(e0, t0, e1, t1, aim, inside=None)
         else:
-            room = max(budget_bytes - (total - primitives), 1.0)
-            error *= min(max(primitives / room, 0.25), 4.0)
+            error *= min(max(total / aim, 1 / 16), 16.0)
     if best is None:
         error, _ = min(tried, key=lambda et: et[1])
         return run_at(error), error
-    return best
+    return best[1], best[2]
+
+
+def _size_one(
+    job: _Job, size_bits: float, fixed: int, codec: str, seed: int, certify: bool, file_bytes
+):
+    """A scene with one primitive to compress: its own size search (as ``compress`` runs
+    it), for the budget less what the file keeps besides it (``fixed`` bytes, estimated).
+    The answer's file tells the rest exactly; when it is over, the primitive's share
+    shrinks by the excess (:data:`SIZE_ONE_TRIES` searches at most). Returns the outcome
+    and, as the common error, the answer's certified bound (or its error), in world
+    units."""
+    budget_bytes = size_bits / 8
+    share = budget_bytes - fixed
+    if share <= 0:
+        raise MeshbitsError(
+            f"the size budget ({budget_bytes:.6g} bytes) does not hold the scene's images and "
+            f"other data ({fixed} bytes)"
+        )
+    outcome = None
+    for _ in range(SIZE_ONE_TRIES):
+        outcome = _search_primitive(job, 8 * share, codec, seed, certify, "size")
+        primitive = outcome[1].size_bits // 8
+        total = file_bytes([outcome])
+        if total <= budget_bytes:
+            break
+        share = primitive - (total - budget_bytes) - SIZE_ONE_MARGIN
+        if share <= 0:
+            break
+    assert outcome is not None
+    record = outcome[0]
+    error = record.measured_error_upper or record.measured_error
+    return [outcome], error * job.scale
+
+
+def _log_line(
+    e0: float, t0: float, e1: float, t1: float, aim: float, inside: tuple[float, float] | None
+) -> float:
+    """The error at which the line through ``(e0, t0)`` and ``(e1, t1)`` (error, bytes),
+    on log-log axes, reaches ``aim`` bytes. Its slope is kept between -3 and -1/3 (bytes
+    fall as the error grows; a flat or rising pair gives -1); ``inside`` keeps the answer
+    at least a tenth of the log-distance from either end of a bracket; without one, a step
+    is at most 16 times either way."""
+    slope = -1.0
+    if e0 > 0 and e1 > 0 and t0 > 0 and t1 > 0 and e0 != e1:
+        fitted = math.log(t1 / t0) / math.log(e1 / e0)
+        if fitted < 0:
+            slope = min(max(fitted, -3.0), -1 / 3)
+    error = e1 * (aim / max(t1, 1)) ** (1 / slope)
+    if inside is not None:
+        lo, hi = math.log(inside[0]), math.log(inside[1])
+        margin = 0.1 * (hi - lo)
+        return math.exp(min(max(math.log(error), lo + margin), hi - margin))
+    return min(max(error, e1 / 16), e1 * 16)
 
 
 def _fixed_bytes(document: Document, jobs: list[_Job]) -> int:
