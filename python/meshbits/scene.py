@@ -849,8 +849,9 @@ def compress_scene(
             outcome = _search_primitive(job, world_error / job.scale, codec, seed, certify)
             outcomes.append(outcome)
             say(
-                f"mesh {job.data.mesh} primitive {job.data.index}: B = {outcome[0].bits}, "
-                f"V = {len(outcome[1].vertices)}, {outcome[1].size_bits // 8} bytes, error "
+                f"mesh {job.data.mesh} primitive {job.data.index} within {world_error:.4g}: "
+                f"B = {outcome[0].bits}, V = {len(outcome[1].vertices)}, "
+                f"{outcome[1].size_bits // 8} bytes, error "
                 f"{outcome[0].measured_error * job.scale:.4g} (world units)"
             )
         return outcomes
