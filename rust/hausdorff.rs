@@ -933,13 +933,9 @@ mod tests {
     #[test]
     fn split_bound_holds_and_is_tight_over_a_flat_edge() {
         use crate::closest::closest_point_on_triangle;
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        use crate::sampling::SplitMix64;
+        let mut rng = SplitMix64::new(7);
+        let mut next = || rng.next_f64() - 0.5;
         let mut checked = 0;
         for _ in 0..300 {
             let p = |n: &mut dyn FnMut() -> f64| DVec3::new(n(), n(), n());

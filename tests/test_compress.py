@@ -394,3 +394,17 @@ def test_compress_refuses_a_tangle_that_would_take_minutes():
     with pytest.raises(meshbits.MeshbitsError, match="485 per vertex"):  # 2 welded
         compress(tangle(), error=0.01, relative=True)
     assert time.perf_counter() - start < 60.0  # a hang guard, not a speed target
+
+
+def test_a_model_that_asks_for_every_vertex_still_gets_a_simplified_level_measured():
+    """The fandisk (a CAD part) at 6.6e-4 mesh units: the paper's model asks for 34,600 of
+    its 6,475 vertices, and compress returned the whole mesh at 13 bits (14,554 bytes);
+    a level of half the vertices, measured first, shows fast-simplification far below
+    the budget there (4.3e-5 at 3,239 vertices)."""
+    fandisk = load("fandisk.ply")
+    result = compress(fandisk, error=6.6e-4)
+    assert result.met and result.error_upper <= 6.6e-4
+    assert len(result.vertices) < 0.5 * len(fandisk[0])
+    grid = meshbits.cube_grid(fandisk[0].min(axis=0), fandisk[0].max(axis=0))
+    whole = encode_draco(fandisk, result.bits, origin=grid[0], grid_size=grid[1])
+    assert result.size_bytes < 0.5 * whole.size_bytes

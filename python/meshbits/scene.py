@@ -867,14 +867,18 @@ def compress_scene(
                 encodings, _, _ = _shared_grids(jobs, outcomes)
             return _write(document, jobs, encodings, codec, None)[1]
 
+        fixed = _fixed_bytes(document, jobs)
+        if budget / 8 - fixed <= 0:
+            raise MeshbitsError(
+                f"the size budget ({budget / 8:.6g} bytes) does not hold the scene's images "
+                f"and other data ({fixed} bytes)"
+            )
         if len(jobs) == 1:
             outcomes, target_error = _size_one(
-                jobs[0], budget, _fixed_bytes(document, jobs), codec, seed, certify, file_bytes
+                jobs[0], budget, fixed, codec, seed, certify, file_bytes
             )
         else:
-            outcomes, target_error = _split_size(
-                jobs, budget, run_at, document, world_size, file_bytes
-            )
+            outcomes, target_error = _split_size(jobs, budget, run_at, world_size, file_bytes)
     measured = [o[0].measured_error for o in outcomes]
     uppers = [o[0].measured_error_upper if certify else None for o in outcomes]
     encodings = [o[1] for o in outcomes]
@@ -887,6 +891,12 @@ def compress_scene(
         jobs, outcomes, encodings, measured, uppers, strict=True
     ):
         local_budget = target_error / job.scale * (1 + 1e-12)
+        if upper is not None:
+            met = upper <= local_budget
+        else:
+            # Without a bound an error budget is met only when nothing was to be certified;
+            # a size budget's answer can lack one (its refinement is capped).
+            met = error_measured <= local_budget and (not certify or given[0] == "size")
         reports.append(
             PrimitiveReport(
                 mesh=job.data.mesh,
@@ -906,9 +916,7 @@ def compress_scene(
                 bytes=encoding.size_bits // 8,
                 error=error_measured,
                 world_error=error_measured * job.scale,
-                met=upper <= local_budget
-                if certify and upper is not None
-                else error_measured <= local_budget and (not certify or given[0] == "size"),
+                met=met,
                 error_upper=upper,
                 world_error_upper=None if upper is None else upper * job.scale,
             )
@@ -938,15 +946,9 @@ def compress_scene(
             )
         )
     world_error = max(r.world_error for r in reports)
-    bounds = [r.world_error_upper for r in reports]
-    bound = ""
-    world_error_upper = (
-        None
-        if not certify or any(b is None for b in bounds)
-        else max(b for b in bounds if b is not None)
-    )
-    if world_error_upper is not None:
-        bound = f" (certified <= {world_error_upper:.4g})"
+    bounds = [r.world_error_upper for r in reports if r.world_error_upper is not None]
+    world_error_upper = max(bounds) if len(bounds) == len(reports) else None
+    bound = "" if world_error_upper is None else f" (certified <= {world_error_upper:.4g})"
     if given[0] == "error":
         met = all(r.met for r in reports)
         message = (
@@ -1069,7 +1071,7 @@ def _world_size(
     return float((np.max(highs, axis=0) - np.min(lows, axis=0)).max())
 
 
-def _split_size(jobs, size_bits, run_at, document, world_size, file_bytes):
+def _split_size(jobs, size_bits, run_at, world_size, file_bytes):
     """The common world-space error whose primitives fill the size budget: the split of
     bytes that minimises the scene's largest error. Each try is judged by the bytes of the
     file it makes (``file_bytes``: the document rebuilt around it, images, JSON and the
@@ -1079,13 +1081,7 @@ def _split_size(jobs, size_bits, run_at, document, world_size, file_bytes):
     when a file fills :data:`SIZE_SPLIT_FILL` of the budget, when the bracket is within 2%,
     or after :data:`SIZE_SPLIT_PASSES` tries. The answer is the try within the budget with
     the least measured world-space error (not the least target)."""
-    fixed = _fixed_bytes(document, jobs)
     budget_bytes = size_bits / 8
-    if budget_bytes - fixed <= 0:
-        raise MeshbitsError(
-            f"the size budget ({budget_bytes:.6g} bytes) does not hold the scene's images and "
-            f"other data ({fixed} bytes)"
-        )
     aim = SIZE_SPLIT_AIM * budget_bytes
     error = 0.002 * world_size
     best = None  # (measured world error, outcomes, target error)
@@ -1126,18 +1122,13 @@ def _size_one(
     job: _Job, size_bits: float, fixed: int, codec: str, seed: int, certify: bool, file_bytes
 ):
     """A scene with one primitive to compress: its own size search (as ``compress`` runs
-    it), for the budget less what the file keeps besides it (``fixed`` bytes, estimated).
-    The answer's file tells the rest exactly; when it is over, the primitive's share
-    shrinks by the excess (:data:`SIZE_ONE_TRIES` searches at most). Returns the outcome
-    and, as the common error, the answer's certified bound (or its error), in world
-    units."""
+    it), for the budget less what the file keeps besides it (``fixed`` bytes, estimated,
+    less than the budget). The answer's file tells the rest exactly; when it is over, the
+    primitive's share shrinks by the excess (:data:`SIZE_ONE_TRIES` searches at most).
+    Returns the outcome and, as the common error, the answer's certified bound (or its
+    error), in world units."""
     budget_bytes = size_bits / 8
     share = budget_bytes - fixed
-    if share <= 0:
-        raise MeshbitsError(
-            f"the size budget ({budget_bytes:.6g} bytes) does not hold the scene's images and "
-            f"other data ({fixed} bytes)"
-        )
     outcome = None
     for _ in range(SIZE_ONE_TRIES):
         outcome = _search_primitive(job, 8 * share, codec, seed, certify, "size")
@@ -1150,7 +1141,8 @@ def _size_one(
             break
     assert outcome is not None
     record = outcome[0]
-    error = record.measured_error_upper or record.measured_error
+    upper = record.measured_error_upper
+    error = record.measured_error if upper is None else upper
     return [outcome], error * job.scale
 
 

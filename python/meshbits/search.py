@@ -1019,8 +1019,9 @@ class Search:
 
     def _fit_aim(self, vertices: float) -> float:
         """Where a size budget's meshopt level locks the original vertices it strays from
-        (length): the tessellation error the built levels show at ``vertices`` (the
-        paper's Eq. 18 at half the error before any)."""
+        (length): the tessellation error the built levels show at ``vertices`` (before
+        any, the paper's Eq. 18 at half the error, which gives E_T from V as it gives V
+        from E_T: :meth:`_paper_vertices`)."""
         inverse = sorted(
             (float(lv.vertex_count), 1.0 / t)
             for lv in self.levels[1:]
@@ -1029,7 +1030,7 @@ class Search:
             if t > 0
         )
         if not inverse:
-            return 0.5 * self.k * self.grid_size / (3.0 * math.sqrt(3.0) * vertices)
+            return self._paper_vertices(vertices)
         return 1.0 / _interpolate(inverse, vertices, inverse[0][1] / inverse[0][0])
 
     def _original_fits(self, bits: int) -> bool:
