@@ -216,3 +216,43 @@ def test_the_closest_result_is_the_least_sampled_error():
     certified = SimpleNamespace(measured_error=2.3e-4, decisive_error=9e-4)
     search = SimpleNamespace(constraint="error", measurements=[sampled, certified])
     assert Search.closest(search) is certified
+
+
+def test_with_nothing_expected_to_meet_the_original_is_measured(monkeypatch):
+    """The dragon at 0.0005 S: the certified bound of the simplified answer missed the
+    budget, the search expected no level to meet it, and it stopped unmet, where the
+    original at B = 11 meets it. Now the original is proposed at the least B expected to
+    meet the budget, then at the next B once that missed."""
+    from types import SimpleNamespace
+
+    from meshbits.hausdorff import Reference
+    from meshbits.search import Search
+
+    vertices, faces = SPOT
+    complexity = meshbits.shape_complexity(SPOT)
+    budget = 0.002 * complexity.grid_size
+    search = Search(
+        (vertices, faces),
+        Reference((vertices, faces), samples=10_000, seed=0),
+        constraint="error",
+        budget=budget,
+        k=complexity.k,
+        grid_size=complexity.grid_size,
+        max_bits=16,
+        format="draco",
+        alpha=compress_module.DRACO_ALPHA,
+        connectivity_bits=compress_module.DRACO_CONNECTIVITY_BITS,
+        method="meshopt",
+        simplifier=None,
+        lods=None,
+        samples=10_000,
+    )
+    monkeypatch.setattr(Search, "_error_candidates", lambda self: [])
+    search.measurements.append(SimpleNamespace(met=False))
+    first = search._error_bits()[0]
+    proposed = search.propose()
+    assert proposed is not None
+    assert (proposed.level, proposed.bits) == (0, first)
+    search.levels[0].errors[first] = 2 * budget
+    proposed = search.propose()
+    assert (proposed.level, proposed.bits) == (0, first + 1)

@@ -869,7 +869,20 @@ class Search:
             return ranked[0]
         if not self.measurements:
             return self._fallback()
+        if best is None and self.constraint == "error":
+            return self._original_fallback()
         return self._clearing(best)
+
+    def _original_fallback(self) -> _Candidate | None:
+        """Nothing measured meets an error budget and no level is expected to (a level
+        that missed it by its certified bound, say): the original at the least B expected
+        to meet it that it was not measured at, or None when every B was."""
+        fitting = self._error_bits()
+        first = fitting[0] if len(fitting) else self.max_bits
+        for bits in range(first, self.max_bits + 1):
+            if not self._tried(0, bits) and self._may_meet(self.levels[0], bits):
+                return self._candidate(0, bits)
+        return None
 
     def _clearing(self, best: Iteration | None) -> _Candidate | None:
         """When the best result meets an error budget without :data:`CLEAR_MARGIN` to
