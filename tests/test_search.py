@@ -218,10 +218,13 @@ def test_the_closest_result_is_the_least_sampled_error():
     assert Search.closest(search) is certified
 
 
-def test_with_nothing_expected_to_meet_the_original_is_measured(monkeypatch):
-    """The dragon at 0.0005 S: the certified bound of the simplified answer missed the
-    budget, the search expected no level to meet it, and it stopped unmet, where the
-    original at B = 11 meets it. Now the original is proposed at the least B expected to
+def test_with_nothing_expected_to_meet_a_finer_level_then_the_original_is_measured(
+    monkeypatch,
+):
+    """The dragon at 0.0005 S: the certified bound of the simplified answer (118,500
+    vertices) missed the budget, the search expected no level to meet it any more, and it
+    stopped unmet. Now the finest level built and never measured is measured (276,202
+    vertices: met, 482,479 bytes), then the original, each at the least B expected to
     meet the budget, then at the next B once that missed."""
     from types import SimpleNamespace
 
@@ -248,11 +251,21 @@ def test_with_nothing_expected_to_meet_the_original_is_measured(monkeypatch):
         samples=10_000,
     )
     monkeypatch.setattr(Search, "_error_candidates", lambda self: [])
-    search.measurements.append(SimpleNamespace(met=False))
+    coarse = search._simplified("meshopt", vertices=300)
+    fine = search._simplified("meshopt", vertices=1500)
+    assert 0 < coarse < fine
     first = search._error_bits()[0]
+
+    def missed(index: int, bits: int) -> None:
+        search.levels[index].errors[bits] = 2 * budget
+        search.measurements.append(SimpleNamespace(met=False, level=index))
+
+    missed(coarse, first)
     proposed = search.propose()
-    assert proposed is not None
+    assert (proposed.level, proposed.bits) == (fine, first)
+    missed(fine, first)
+    proposed = search.propose()
     assert (proposed.level, proposed.bits) == (0, first)
-    search.levels[0].errors[first] = 2 * budget
+    missed(0, first)
     proposed = search.propose()
     assert (proposed.level, proposed.bits) == (0, first + 1)

@@ -875,13 +875,27 @@ class Search:
 
     def _original_fallback(self) -> _Candidate | None:
         """Nothing measured meets an error budget and no level is expected to (a level
-        that missed it by its certified bound, say): the original at the least B expected
-        to meet it that it was not measured at, or None when every B was."""
+        that missed it by its certified bound, say, and the lesson scaled every level's
+        estimate up): the finest level built and never measured, finer than every level
+        measured, then the original, each at the least B expected to meet the budget that
+        it was not measured at; None when every B was."""
         fitting = self._error_bits()
         first = fitting[0] if len(fitting) else self.max_bits
-        for bits in range(first, self.max_bits + 1):
-            if not self._tried(0, bits) and self._may_meet(self.levels[0], bits):
-                return self._candidate(0, bits)
+        finest_missed = max(
+            (self.levels[m.level].vertex_count for m in self.measurements), default=0
+        )
+        finer = sorted(
+            (
+                i
+                for i, level in enumerate(self.levels)
+                if i > 0 and level.vertex_count > finest_missed and not level.errors
+            ),
+            key=lambda i: -self.levels[i].vertex_count,
+        )
+        for index in [*finer[:1], 0]:
+            for bits in range(first, self.max_bits + 1):
+                if not self._tried(index, bits) and self._may_meet(self.levels[index], bits):
+                    return self._candidate(index, bits)
         return None
 
     def _clearing(self, best: Iteration | None) -> _Candidate | None:
