@@ -136,6 +136,33 @@ def test_the_horse_spikes_are_locked():
     assert result.met and len(result.vertices) < 13_800
 
 
+def test_a_level_straying_from_more_than_its_share_locks_the_farthest(monkeypatch):
+    """A level of 2,000 vertices of the horse aimed far below its error strays from most
+    of the original: it locks the farthest tenth of its vertex count (exact distances,
+    ranked), not none as it used to (the dragon at 200,000 bits kept its spikes then)."""
+    from meshbits.hausdorff import ClosestPoints
+    from meshbits.search import LOCK_MAX_FRACTION, _simplify_locking
+
+    search_module = importlib.import_module("meshbits.search")
+    monkeypatch.setattr(search_module, "LOCK_ROUNDS", 1)
+    horse = load("horse.ply")
+    vertices, faces = horse
+    first = meshbits.simplify(horse, 2000, method="meshopt", update_positions=True)
+    distances = ClosestPoints(first.mesh).query(vertices).distances
+    used = np.unique(faces)
+    cap = int(LOCK_MAX_FRACTION * first.vertex_count)
+    aim = float(np.quantile(distances[used], 0.5))
+    assert np.count_nonzero(distances[used] > aim) > cap
+    strays = np.zeros(len(vertices), dtype=bool)
+    result, locked, _ = _simplify_locking(horse, "meshopt", {"vertices": 2000}, aim, strays)
+    assert locked == cap
+    farthest = used[np.argsort(-distances[used], kind="stable")[:cap]]
+    assert set(np.flatnonzero(strays)) == set(farthest.tolist())
+    again = ClosestPoints(result.mesh).query(vertices[farthest]).distances
+    assert np.median(again) < 0.01 * np.median(distances[farthest])
+    assert ClosestPoints(result.mesh).query(vertices[used]).distances.max() < distances.max()
+
+
 def test_a_size_budget_gets_the_least_error_the_search_finds():
     result = meshbits.compress(SPOT, size=8 * 8000)
     assert result.met and result.size_bytes <= 8000
