@@ -872,10 +872,10 @@ class Search:
         if not self.measurements:
             return self._fallback()
         if best is None and self.constraint == "error":
-            return self._original_fallback()
+            return self._last_resort()
         return self._clearing(best)
 
-    def _original_fallback(self) -> _Candidate | None:
+    def _last_resort(self) -> _Candidate | None:
         """Nothing measured meets an error budget and no level is expected to (a level
         that missed it by its certified bound, say, and the lesson scaled every level's
         estimate up): the finest level built and never measured, finer than every level
