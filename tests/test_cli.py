@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -342,6 +343,26 @@ def test_k_headlines_the_welded_vertex_count_of_a_soup(tmp_path, capsys):
     soup.export(path)
     assert main(["k", str(path)]) == 0
     assert f"{len(corners)} vertices (453 once welded), 948 faces" in capsys.readouterr().out
+
+
+def test_a_fixed_width_plan_of_a_soup_counts_its_welded_vertices(tmp_path, capsys):
+    """``plan --format ply`` of an STL sized its faces from the soup's three vertices per
+    face: 1,208 vertices for a 20 kB bunny where the welded PLY plans 532."""
+    import numpy as np
+    import trimesh
+
+    source = DATA / "bunny_res4.ply"
+    mesh = trimesh.load(source, process=False)
+    corners = np.asarray(mesh.vertices)[np.asarray(mesh.faces)].reshape(-1, 3)
+    soup = trimesh.Trimesh(corners, np.arange(len(corners)).reshape(-1, 3), process=False)
+    path = tmp_path / "soup.stl"
+    soup.export(path)
+    planned = []
+    for mesh_path in (source, path):
+        assert main(["plan", str(mesh_path), "--size", "4KB", "--format", "ply"]) == 0
+        line = capsys.readouterr().out.strip().splitlines()[-1]
+        planned.append(int(re.search(r"keep about (\d+) vertices", line).group(1)))
+    assert abs(planned[1] / planned[0] - 1) < 0.03, planned
 
 
 @pytest.mark.parametrize("command", [["k"], ["info"], ["compress", "--error", "0.01"]])

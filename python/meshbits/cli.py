@@ -1071,7 +1071,10 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
     (sizes from :func:`meshbits.encode.fixed_width_size_bits`, errors from Eq. 2 and 10)."""
     k, grid_size, fmt = report["k"], report["grid_size"], args.format
     bits = FORMAT_MAX_BITS[fmt]
-    faces_per_vertex = report["faces"] / max(report["vertices"], 1)
+    # A triangle soup (STL) counts each vertex once per face: its welded vertices are the
+    # mesh's.
+    welded = report["vertices"] - (report.get("merged_vertices") or 0)
+    faces_per_vertex = report["faces"] / max(welded, 1)
 
     def size_at(v: float) -> float:
         return fixed_width_size_bits(fmt, bits, v, v * faces_per_vertex)
