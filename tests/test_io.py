@@ -219,3 +219,28 @@ def test_damaged_files_get_messages_that_name_the_problem(tmp_path, name, data, 
     message = refusal(tmp_path, name, data)
     assert expected in message, message
     assert "\n" not in message
+
+
+def test_a_draco_file_reads_back_as_draco_decodes_it(tmp_path):
+    """``meshbits hausdorff mesh.ply out.drc`` said trimesh does not read DRC files: the
+    library could not check its own output. A .drc is now decoded with DracoPy (its points
+    and faces as DracoPy gives them), plain or gzipped; a damaged one is refused."""
+    import DracoPy
+
+    from meshbits.encode import encode_draco
+
+    spot = meshbits.load_mesh(meshbits.example_mesh_path())
+    data = encode_draco(spot, 11).data
+    path = tmp_path / "spot.drc"
+    path.write_bytes(data)
+    decoded = DracoPy.decode(data)
+    for source in (path, tmp_path / "spot.drc.gz"):
+        if source.suffix == ".gz":
+            source.write_bytes(gzip.compress(data))
+        vertices, faces = meshbits.load_mesh(source)
+        assert np.array_equal(vertices, np.asarray(decoded.points, dtype=np.float64))
+        assert np.array_equal(faces, np.asarray(decoded.faces, dtype=np.int64))
+    damaged = tmp_path / "damaged.drc"
+    damaged.write_bytes(data[: len(data) // 3])
+    with pytest.raises(MeshFileError, match=r"damaged\.drc"):
+        meshbits.load_mesh(damaged)

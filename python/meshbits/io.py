@@ -20,6 +20,7 @@ import warnings
 import zlib
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -114,7 +115,9 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         # refused or read all the same, the warnings tell the caller nothing more.
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            if compressed:
+            if file_type == "drc":
+                loaded = _draco_mesh(source.read() if compressed else path.read_bytes())
+            elif compressed:
                 loaded = trimesh.load(source, file_type=file_type, process=False)
             else:
                 loaded = trimesh.load(path, process=False)
@@ -142,6 +145,17 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     except MeshbitsError as err:
         raise MeshFileError(f"{path}: {err}") from err
     return vertices, faces
+
+
+def _draco_mesh(data: bytes) -> Any:
+    """A Draco file (what ``meshbits compress -o x.drc`` writes) as a trimesh mesh,
+    decoded with DracoPy."""
+    import trimesh
+
+    from .encode import decode_draco
+
+    vertices, faces = decode_draco(data)
+    return trimesh.Trimesh(vertices, faces, process=False)
 
 
 def _check_file(path: Path, file_type: str) -> None:
