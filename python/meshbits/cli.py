@@ -791,7 +791,8 @@ def _run_info(args: argparse.Namespace) -> int:
             attributes = ", ".join(f"{k} ({v})" for k, v in prim["attributes"].items())
             extras = f"; {', '.join(prim['extensions'])}" if prim["extensions"] else ""
             if prim.get("non_finite_positions"):
-                extras += f"; {prim['non_finite_positions']} positions NaN or infinite"
+                count = prim["non_finite_positions"]
+                extras += f"; {count} position{'s' if count > 1 else ''} NaN or infinite"
             print(
                 f"  mesh {mesh['mesh']} {mesh['name'] or ''} primitive {prim['primitive']}: "
                 f"{prim['vertices']} vertices, {prim['faces']} faces; {attributes}{extras}"

@@ -90,9 +90,11 @@ def as_points(
     finite = np.isfinite(out).all(axis=1)
     if not finite.all():
         bad = int(np.flatnonzero(~finite)[0])
+        count = int((~finite).sum())
+        rows = "1 row has" if count == 1 else f"{count} rows have"
         raise MeshbitsError(
             f"{name}[{bad}] = {out[bad].tolist()} is not finite "
-            f"({int((~finite).sum())} rows have NaN or infinite coordinates)"
+            f"({rows} NaN or infinite coordinates)"
         )
     return out
 
