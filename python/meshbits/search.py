@@ -1382,7 +1382,9 @@ def certify_answer(
                 max(best.measured_error, h.distance), upper, search.budget, True
             )
             if progress is not None:
-                verdict = "holds" if checked.met else "misses the budget: not met after all"
+                verdict = (
+                    "holds" if checked.met else "misses the budget: not met, the search goes on"
+                )
                 progress(
                     Progress(
                         "compress",
