@@ -1382,9 +1382,12 @@ def certify_answer(
                 max(best.measured_error, h.distance), upper, search.budget, True
             )
             if progress is not None:
-                verdict = (
-                    "holds" if checked.met else "misses the budget: not met, the search goes on"
+                more = (round_ == 0 and extra_passes >= 1) or any(
+                    m.met and m.measured_error_upper is None for m in search.measurements
                 )
+                verdict = "holds" if checked.met else "misses the budget: not met"
+                if not checked.met and more:
+                    verdict += ", the search goes on"
                 progress(
                     Progress(
                         "compress",
