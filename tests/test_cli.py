@@ -374,3 +374,20 @@ def test_an_empty_glb_is_called_empty_by_every_command(tmp_path, capsys, command
     path.write_bytes(b"")
     assert main([command[0], str(path), *command[1:]]) == 2
     assert "the file is empty" in capsys.readouterr().err
+
+
+def test_info_and_a_batch_folder_read_a_draco_file(tmp_path, capsys):
+    """``info out.drc`` said trimesh does not support 'drc', and a batch over a folder
+    holding only .drc files found no mesh files."""
+    from meshbits.encode import encode_draco
+    from meshbits.io import example_mesh_path, load_mesh
+
+    spot = load_mesh(example_mesh_path())
+    folder = tmp_path / "drc"
+    folder.mkdir()
+    (folder / "spot.drc").write_bytes(encode_draco(spot, 11).data)
+    assert main(["info", str(folder / "spot.drc")]) == 0
+    assert f"{len(spot[1])} faces" in capsys.readouterr().out
+    out = tmp_path / "out"
+    assert main(["batch", str(folder), "-o", str(out), "--error", "0.01", "--relative"]) == 0
+    assert (out / "spot.drc").is_file()

@@ -64,7 +64,7 @@ __all__ = [
 ]
 
 #: File names searched for in a folder or a glob's matches (case-insensitive).
-MESH_SUFFIXES = (".ply.gz", ".ply", ".obj", ".stl", ".off", ".glb", ".gltf")
+MESH_SUFFIXES = (".ply.gz", ".ply", ".obj", ".stl", ".off", ".glb", ".gltf", ".drc")
 #: Output formats: ``drc`` and ``ply`` through :func:`meshbits.compress` (one merged
 #: mesh), ``glb`` and ``gltf`` through :func:`meshbits.compress_scene` (the whole scene).
 FORMATS = ("drc", "ply", "glb", "gltf")

@@ -543,7 +543,11 @@ def _from_trimesh(path: Path) -> Document:
     from .io import checked_mesh_file
 
     source, file_type, compressed = checked_mesh_file(path)
-    if compressed:
+    if file_type == "drc":
+        from .io import load_mesh
+
+        loaded = trimesh.Trimesh(*load_mesh(path), process=False)
+    elif compressed:
         loaded = trimesh.load(source, file_type=file_type, process=False)
     else:
         loaded = trimesh.load(path, process=False)
