@@ -144,11 +144,12 @@ def normal_bits(vectors: np.ndarray, tolerance_degrees: float = NORMAL_TOLERANCE
 
 def uv_bits(uv: np.ndarray, texels: int | None) -> int:
     """Bits for texture coordinates: the fewest that keep them within half a texel of the
-    largest texture bound to them (``texels`` its largest side), 8 to 16;
+    largest texture bound to them (``texels`` its largest side), 8 to 16, over their range,
+    or over [0, 1] when they lie in it (meshopt stores them there as normalized shorts);
     :data:`DEFAULT_UV_BITS` without a texture."""
     if not texels or len(uv) == 0:
         return DEFAULT_UV_BITS
-    extent = float(np.ptp(uv, axis=0).max())
+    extent = 1.0 if _in_unit_square(uv) else float(np.ptp(uv, axis=0).max())
     if extent <= 0:
         return 8
     return int(min(max(math.ceil(math.log2(extent * texels + 1)), 8), 16))
@@ -278,17 +279,10 @@ def _accessor_fields(
     return out
 
 
-def _unit_uv_levels(uv: np.ndarray, step: float) -> int | None:
-    """For UVs within [0, 1] (or within half of ``step`` of it: simplification
-    interpolates them) rounded to ``step``: the steps of [0, 1] that store them as
-    normalized unsigned shorts no coarser, 255 or 65535 (each step then an exact short:
-    ``65535 = 255 * 257``); None when the UVs leave [0, 1] or need finer steps."""
-    if len(uv) == 0 or uv.min() < -0.5 * step or uv.max() > 1.0 + 0.5 * step:
-        return None
-    for levels in (255, 65535):
-        if 1.0 / levels <= step:
-            return levels
-    return None
+def _in_unit_square(uv: np.ndarray, slack: float = 0.0) -> bool:
+    """Whether texture coordinates lie in [0, 1] (within ``slack``: simplification
+    interpolates them)."""
+    return len(uv) > 0 and uv.min() >= -slack and uv.max() <= 1.0 + slack
 
 
 def _unit_u8(values: np.ndarray) -> np.ndarray:
@@ -477,18 +471,19 @@ def encode_meshopt_primitive(
             }
         elif name.startswith("TEXCOORD_"):
             b = attribute_bits.uv.get(name, DEFAULT_UV_BITS)
-            lo, extent = values.min(axis=0), max(float(np.ptp(values, axis=0).max()), 1e-30)
-            uv_step = extent / (2**b - 1)
-            levels = _unit_uv_levels(values, uv_step)
-            if levels:
-                # Normalized unsigned shorts (KHR_mesh_quantization): steps of [0, 1] no
-                # coarser than the b-bit steps of the UVs' range. A float32 stream of the
-                # same values compresses several times worse.
-                codes = np.round(np.clip(values, 0.0, 1.0) * levels) * (65535 // levels)
-                stored = codes.astype(np.uint16)
+            levels = 2**b - 1
+            if _in_unit_square(values, 0.5 / levels):
+                # Normalized unsigned shorts (KHR_mesh_quantization): the b-bit steps of
+                # [0, 1], each at its nearest short (exact for 8 and 16 bits, at most
+                # 1/131070 off otherwise). A float32 stream of the same values compresses
+                # several times worse.
+                steps = np.round(np.clip(values, 0.0, 1.0) * levels)
+                stored = np.round(steps * (65535 / levels)).astype(np.uint16)
                 streams.append(_stream(name, stored))
                 accessors[name] = _accessor_fields(stored, 5123, True, False)
                 continue
+            lo, extent = values.min(axis=0), max(float(np.ptp(values, axis=0).max()), 1e-30)
+            uv_step = extent / levels
             rounded = (lo + np.round((values - lo) / uv_step) * uv_step).astype(np.float32)
             streams.append(_stream(name, rounded))
             accessors[name] = _accessor_fields(rounded, 5126, False, False)
