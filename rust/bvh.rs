@@ -482,11 +482,11 @@ impl TriangleTree {
             return Some(best);
         }
         let mut child = start;
-        while let Some(&up) = self
-            .parent
-            .get(child as usize)
-            .filter(|&&up| up != u32::MAX)
-        {
+        loop {
+            let up = self.parent[child as usize];
+            if up == u32::MAX {
+                break;
+            }
             let pair = &self.pairs[up as usize];
             let other = usize::from(pair.count[0] == 0 && pair.link[0] == child);
             if pair.distance_squared(p, other) <= best.d2 {

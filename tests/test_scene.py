@@ -435,7 +435,7 @@ def test_a_scene_round_trips_with_everything_kept(scene_file, tmp_path, codec):
 @pytest.mark.parametrize("codec", ["draco", "meshopt"])
 def test_uv_seams_are_kept(scene_file, tmp_path, codec):
     """With meshopt, UVs within [0, 1] are normalized unsigned shorts (they were float32,
-    which its vertex codec compresses several times worse)."""
+    which its vertex codec compresses worse)."""
     if codec == "meshopt":
         pytest.importorskip("meshopt")
     path, _ = scene_file

@@ -540,17 +540,10 @@ def _from_trimesh(path: Path) -> Document:
 
     import trimesh
 
-    from .io import checked_mesh_file
+    from .io import checked_mesh_file, parse_mesh_file
 
     source, file_type, compressed = checked_mesh_file(path)
-    if file_type == "drc":
-        from .io import load_mesh
-
-        loaded = trimesh.Trimesh(*load_mesh(path), process=False)
-    elif compressed:
-        loaded = trimesh.load(source, file_type=file_type, process=False)
-    else:
-        loaded = trimesh.load(path, process=False)
+    loaded = parse_mesh_file(path, source, file_type, compressed)
     scene = loaded if isinstance(loaded, trimesh.Scene) else trimesh.Scene(loaded)
     if not any(isinstance(g, trimesh.Trimesh) and len(g.faces) for g in scene.geometry.values()):
         raise MeshFileError(f"{path} holds no triangles")

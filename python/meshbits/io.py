@@ -115,12 +115,7 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         # refused or read all the same, the warnings tell the caller nothing more.
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            if file_type == "drc":
-                loaded = _draco_mesh(source.read() if compressed else path.read_bytes())
-            elif compressed:
-                loaded = trimesh.load(source, file_type=file_type, process=False)
-            else:
-                loaded = trimesh.load(path, process=False)
+            loaded = parse_mesh_file(path, source, file_type, compressed)
             if isinstance(loaded, trimesh.Scene):
                 meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
                 if not meshes:
@@ -147,15 +142,22 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
-def _draco_mesh(data: bytes) -> Any:
-    """A Draco file (what ``meshbits compress -o x.drc`` writes) as a trimesh mesh,
-    decoded with DracoPy."""
+def parse_mesh_file(
+    path: Path, source: Path | _io.BytesIO, file_type: str, compressed: bool
+) -> Any:
+    """A checked mesh file (what :func:`checked_mesh_file` returned for ``path``) as a
+    trimesh object: a Draco file (what ``meshbits compress -o x.drc`` writes) decoded with
+    DracoPy, anything else parsed by trimesh."""
     import trimesh
 
-    from .encode import decode_draco
+    if file_type == "drc":
+        from .encode import decode_draco
 
-    vertices, faces = decode_draco(data)
-    return trimesh.Trimesh(vertices, faces, process=False)
+        data = source.read() if isinstance(source, _io.BytesIO) else path.read_bytes()
+        return trimesh.Trimesh(*decode_draco(data), process=False)
+    if compressed:
+        return trimesh.load(source, file_type=file_type, process=False)
+    return trimesh.load(path, process=False)
 
 
 def _check_file(path: Path, file_type: str) -> None:

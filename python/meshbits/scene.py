@@ -476,7 +476,7 @@ def encode_meshopt_primitive(
                 # Normalized unsigned shorts (KHR_mesh_quantization): the b-bit steps of
                 # [0, 1], each at its nearest short (exact for 8 and 16 bits, at most
                 # 1/131070 off otherwise). A float32 stream of the same values compresses
-                # several times worse.
+                # worse: the new-user check's textured scene went from 23,292 to 20,484 bytes.
                 steps = np.round(np.clip(values, 0.0, 1.0) * levels)
                 stored = np.round(steps * (65535 / levels)).astype(np.uint16)
                 streams.append(_stream(name, stored))

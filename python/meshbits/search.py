@@ -886,15 +886,16 @@ class Search:
         finest_missed = max(
             (self.levels[m.level].vertex_count for m in self.measurements), default=0
         )
-        finer = sorted(
+        finest = max(
             (
                 i
                 for i, level in enumerate(self.levels)
                 if i > 0 and level.vertex_count > finest_missed and not level.errors
             ),
-            key=lambda i: -self.levels[i].vertex_count,
+            key=lambda i: self.levels[i].vertex_count,
+            default=None,
         )
-        for index in [*finer[:1], 0]:
+        for index in [finest, 0] if finest is not None else [0]:
             for bits in range(first, self.max_bits + 1):
                 if not self._tried(index, bits) and self._may_meet(self.levels[index], bits):
                     return self._candidate(index, bits)
