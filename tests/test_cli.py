@@ -391,3 +391,30 @@ def test_info_and_a_batch_folder_read_a_draco_file(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["batch", str(folder), "-o", str(out), "--error", "0.01", "--relative"]) == 0
     assert (out / "spot.drc").is_file()
+
+
+def test_json_reports_name_the_unit_of_their_lengths(tmp_path, capsys):
+    """Lengths in a JSON report are in ``length_unit``: the meter for glTF (its unit),
+    the file's own units otherwise, in every command that reports lengths."""
+    import trimesh
+
+    from meshbits.io import example_mesh_path, load_mesh
+
+    bunny = str(DATA / "bunny.ply")
+    spot = load_mesh(example_mesh_path())
+    glb = tmp_path / "spot.glb"
+    glb.write_bytes(trimesh.exchange.gltf.export_glb(trimesh.Scene(trimesh.Trimesh(*spot))))
+    for argv in (
+        ("k", bunny),
+        ("plan", bunny, "--error", "0.002", "--relative"),
+        ("compress", bunny, "--error", "0.01", "--relative"),
+        ("hausdorff", bunny, bunny, "--samples", "1000"),
+        ("quantize", bunny, "--bits", "8"),
+    ):
+        assert run_json(capsys, *argv)["length_unit"] == "mesh units", argv
+    for argv in (("k", str(glb)), ("info", str(glb)), ("hausdorff", str(glb), str(glb))):
+        assert run_json(capsys, *argv)["length_unit"] == "m", argv
+    out = tmp_path / "out"
+    assert main(["batch", str(glb), "-o", str(out), "--error", "0.01", "--relative", "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)["rows"]
+    assert row["length_unit"] == "m"

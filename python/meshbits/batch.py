@@ -46,6 +46,7 @@ from . import _core
 from .errors import MeshbitsError
 from .io import write_atomic
 from .results import json_ready
+from .units import length_unit_of
 
 __all__ = [
     "CODECS",
@@ -201,8 +202,11 @@ class BatchRow:
         return self.input_bytes - self.output_bytes
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict of the fields (strict JSON: no NaN or Infinity)."""
-        return json_ready(dataclasses.asdict(self))
+        """JSON-ready dict of the fields (strict JSON: no NaN or Infinity), with
+        ``length_unit`` after ``path``: the unit of ``error`` and ``error_upper`` (and of a
+        ``budget`` of an error), ``"m"`` for glTF, else ``"mesh units"``."""
+        first, *rest = dataclasses.asdict(self).items()
+        return json_ready(dict([first, ("length_unit", length_unit_of(self.path)), *rest]))
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> BatchRow:

@@ -14,6 +14,10 @@ Every subcommand prints a short human-readable report, or one JSON object with
 With ``--json`` a failure (2, 3, 130; usage errors too) is also one JSON object on stdout,
 ``{"error": message, "exit_code": code}``.
 
+A JSON report of a file names the unit of its lengths in ``length_unit``: ``"m"`` for
+glTF (whose unit is the meter), else ``"mesh units"`` (the file's own coordinates, which
+carry no unit); areas are in that unit squared.
+
 Arguments and output folders are checked before any file is read.
 """
 
@@ -52,7 +56,7 @@ from .io import check_writable, example_mesh_path, load_mesh, save_mesh
 from .model import METHODS, plan_for_error, plan_for_size, plan_for_vertices
 from .quantize import cluster
 from .results import Progress, json_ready
-from .units import parse_length, parse_size
+from .units import length_unit_of, parse_length, parse_size
 
 __all__ = ["main"]
 
@@ -65,7 +69,12 @@ class UserError(Exception):
     """A problem with the command's input, reported in one line with exit code 2."""
 
 
-def _print_json(payload: dict[str, Any]) -> None:
+def _print_json(payload: dict[str, Any], lengths_of: Path | None = None) -> None:
+    """Print ``payload`` as strict JSON; with ``lengths_of``, after its first key the unit
+    of the lengths reported on that file (``length_unit``)."""
+    if lengths_of is not None:
+        first, *rest = payload.items()
+        payload = dict([first, ("length_unit", length_unit_of(lengths_of)), *rest])
     print(json.dumps(json_ready(payload), indent=2, allow_nan=False))
 
 
@@ -206,7 +215,7 @@ def _add_k(sub: argparse._SubParsersAction) -> None:
 def _run_k(args: argparse.Namespace) -> int:
     report = _complexity_report(args.mesh, args)
     if args.json:
-        _print_json(report)
+        _print_json(report, args.mesh)
         return EXIT_OK
     _print_table(
         f"{report['mesh']}: {report['vertices']} vertices"
@@ -451,7 +460,7 @@ def _run_compress(args: argparse.Namespace) -> int:
         **result.to_dict(),
     }
     if args.json:
-        _print_json(payload)
+        _print_json(payload, args.mesh)
     else:
         first = result.plan
         _print_table(
@@ -558,7 +567,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         **result.to_dict(),
     }
     if args.json:
-        _print_json(payload)
+        _print_json(payload, args.mesh)
         return EXIT_OK if result.met else EXIT_UNMET
     target = "(not written: use -o x.glb)" if args.output is None else str(args.output)
     print(
@@ -773,7 +782,7 @@ def _run_info(args: argparse.Namespace) -> int:
 
     info = scene_info(_input(args.file))
     if args.json:
-        _print_json(info)
+        _print_json(info, args.file)
         return EXIT_OK
     print(f"{info['file']}: {info['bytes']} bytes")
     print(
@@ -1005,7 +1014,8 @@ def _run_plan(args: argparse.Namespace) -> int:
                 "mesh_faces": report["faces"],
                 "estimator": report["estimator"],
                 **plan.to_dict(),
-            }
+            },
+            args.mesh,
         )
         return EXIT_OK
     print(f"{report['mesh']}: {report['vertices']} vertices, {report['faces']} faces")
@@ -1121,7 +1131,9 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
         "grid_size": grid_size,
     }
     if args.json:
-        _print_json({"mesh": report["mesh"], "mesh_vertices": report["vertices"], **plan})
+        _print_json(
+            {"mesh": report["mesh"], "mesh_vertices": report["vertices"], **plan}, args.mesh
+        )
         return EXIT_OK
     print(f"{report['mesh']}: {report['vertices']} vertices, {report['faces']} faces")
     print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} (mesh units)")
@@ -1238,7 +1250,7 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
     if args.colors is not None:
         report["colors"] = _write_colors(meshes["a"], meshes["b"], args)
     if args.json:
-        _print_json(report)
+        _print_json(report, args.a)
         return EXIT_OK
     rows: list[tuple[str, Any]] = [("Hausdorff distance (sampled)", result.distance)]
     if result.upper is not None:
@@ -1306,7 +1318,7 @@ def _run_quantize(args: argparse.Namespace) -> int:
         **result.to_dict(),
     }
     if args.json:
-        _print_json(report)
+        _print_json(report, args.mesh)
         return EXIT_OK
     _print_table(
         f"{report['mesh']}: {result.input_vertices} vertices, {result.input_faces} faces, "

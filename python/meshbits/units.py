@@ -8,14 +8,23 @@ meters (glTF's unit).
 from __future__ import annotations
 
 import math
+import os
 import re
+from pathlib import Path
 
 from .errors import MeshbitsError
 
-__all__ = ["LENGTH_UNITS", "parse_length", "parse_size"]
+__all__ = ["LENGTH_UNITS", "length_unit_of", "parse_length", "parse_size"]
 
 #: Length units, in meters (glTF's unit).
 LENGTH_UNITS = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0, "km": 1e3, "in": 0.0254, "ft": 0.3048}
+
+
+def length_unit_of(path: str | os.PathLike[str]) -> str:
+    """The unit of lengths read from ``path``: ``"m"`` for glTF (``.glb``/``.gltf``,
+    whose unit is the meter), else ``"mesh units"`` (the file's own coordinates, which
+    name no unit)."""
+    return "m" if Path(path).suffix.lower() in (".glb", ".gltf") else "mesh units"
 
 
 def parse_length(text: str) -> float:
