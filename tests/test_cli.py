@@ -418,3 +418,22 @@ def test_json_reports_name_the_unit_of_their_lengths(tmp_path, capsys):
     assert main(["batch", str(glb), "-o", str(out), "--error", "0.01", "--relative", "--json"]) == 0
     (row,) = json.loads(capsys.readouterr().out)["rows"]
     assert row["length_unit"] == "m"
+
+
+def test_info_on_another_format_says_it_is_read_as_a_gltf_scene(tmp_path, capsys):
+    """``info bunny.ply`` listed the bytes by part and the JSON size of the glTF the PLY is
+    converted to, as if they were the file's."""
+    import trimesh
+
+    bunny = DATA / "bunny.ply"
+    assert main(["info", str(bunny)]) == 0
+    text = capsys.readouterr().out
+    assert "(PLY, read as a glTF scene)" in text and "bytes by part" not in text
+    assert "1 mesh, 1 node, 1 scene," in text
+    assert run_json(capsys, "info", str(bunny))["converted_to_gltf"] is True
+    glb = tmp_path / "bunny.glb"
+    glb.write_bytes(trimesh.exchange.gltf.export_glb(trimesh.Scene(trimesh.load(bunny))))
+    assert main(["info", str(glb)]) == 0
+    text = capsys.readouterr().out
+    assert "read as" not in text and "bytes by part" in text
+    assert run_json(capsys, "info", str(glb))["converted_to_gltf"] is False

@@ -781,20 +781,37 @@ def _run_info(args: argparse.Namespace) -> int:
     from .scene import scene_info
 
     info = scene_info(_input(args.file))
+    # Another format is read as the glTF scene trimesh converts it to: its counts are the
+    # file's, its bytes by part and JSON those of that scene.
+    converted = args.file.suffix.lower() not in (".glb", ".gltf")
     if args.json:
-        _print_json(info, args.file)
+        _print_json({**info, "converted_to_gltf": converted}, args.file)
         return EXIT_OK
-    print(f"{info['file']}: {info['bytes']} bytes")
+    kind = f" ({args.file.suffix.lstrip('.').upper()}, read as a glTF scene)" if converted else ""
+    print(f"{info['file']}: {info['bytes']} bytes{kind}")
+    counts = {
+        "mesh": len(info["meshes"]),
+        "node": info["nodes"],
+        "scene": info["scenes"],
+        "material": info["materials"],
+        "texture": info["textures"],
+        "image": len(info["images"]),
+        "skin": info["skins"],
+        "animation": info["animations"],
+        "camera": info["cameras"],
+    }
     print(
-        f"  {len(info['meshes'])} meshes, {info['nodes']} nodes, {info['scenes']} scenes, "
-        f"{info['materials']} materials, {info['textures']} textures, {len(info['images'])} "
-        f"images, {info['skins']} skins, {info['animations']} animations, {info['cameras']} "
-        "cameras"
+        "  "
+        + ", ".join(
+            f"{n} {word if n == 1 else word + ('es' if word == 'mesh' else 's')}"
+            for word, n in counts.items()
+        )
     )
     if info["extensions_used"]:
         print(f"  extensions: {', '.join(info['extensions_used'])}")
-    parts = ", ".join(f"{k} {v}" for k, v in info["bytes_by_part"].items())
-    print(f"  bytes by part: {parts}, JSON {info['json_bytes']}")
+    if not converted:
+        parts = ", ".join(f"{k} {v}" for k, v in info["bytes_by_part"].items())
+        print(f"  bytes by part: {parts}, JSON {info['json_bytes']}")
     for mesh in info["meshes"]:
         for prim in mesh["primitives"]:
             attributes = ", ".join(f"{k} ({v})" for k, v in prim["attributes"].items())
