@@ -837,6 +837,29 @@ fn meshopt_encode_octahedral<'py>(
     encoded.into_pyarray(py).reshape([n, width])
 }
 
+/// One `bufferView` of `EXT_meshopt_compression` / `KHR_meshopt_compression` decoded:
+/// `data` (the compressed bytes), `count` elements of `stride` bytes, `mode`
+/// (`"ATTRIBUTES"`, `"TRIANGLES"`, `"INDICES"`) and `filter` (`"NONE"`, `"OCTAHEDRAL"`,
+/// `"QUATERNION"`, `"EXPONENTIAL"`, `"COLOR"`; None for none): the `count * stride` plain
+/// bytes (see [`codec::decode_buffer_view`]).
+#[pyfunction]
+#[pyo3(signature = (data, count, stride, mode, filter = None))]
+fn meshopt_decode<'py>(
+    py: Python<'py>,
+    data: &[u8],
+    count: usize,
+    stride: usize,
+    mode: &str,
+    filter: Option<&str>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let mode = codec::Mode::from_name(mode)?;
+    let filter = codec::Filter::from_name(filter.unwrap_or("NONE"))?;
+    let decoded = run_detached(py, || {
+        codec::decode_buffer_view(data, count, stride, mode, filter)
+    })?;
+    Ok(PyBytes::new(py, decoded.as_bytes()))
+}
+
 /// Faces with every vertex replaced by the smallest-index vertex of identical coordinates
 /// (see `adjacency::weld_identical`), and how many vertices were merged.
 #[pyfunction]
@@ -917,6 +940,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(meshopt_encode_triangles, m)?)?;
     m.add_function(wrap_pyfunction!(meshopt_encode_octahedral, m)?)?;
     m.add_function(wrap_pyfunction!(meshopt_reorder, m)?)?;
+    m.add_function(wrap_pyfunction!(meshopt_decode, m)?)?;
     m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(get_num_threads, m)?)?;
     Ok(())

@@ -117,6 +117,7 @@ __all__ = [
     "get_num_threads",
     "hausdorff_directed",
     "hausdorff_from_samples",
+    "meshopt_decode",
     "meshopt_encode_octahedral",
     "meshopt_encode_triangles",
     "meshopt_encode_vertices",
@@ -213,6 +214,9 @@ def meshopt_encode_octahedral(
 def meshopt_reorder(
     faces: npt.NDArray[np.uint32], vertex_count: int
 ) -> tuple[npt.NDArray[np.uint32], npt.NDArray[np.uint32]]: ...
+def meshopt_decode(
+    data: bytes, count: int, stride: int, mode: str, filter: str | None = None
+) -> bytes: ...
 def weld(
     vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32]
 ) -> tuple[npt.NDArray[np.uint32], int]: ...

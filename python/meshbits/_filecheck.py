@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .errors import MeshFileError
+from .gltf import unread_required_extensions
 
 __all__ = ["check_structure", "explain"]
 
@@ -287,15 +288,17 @@ def _glb(buffer: Any, size: int) -> None:
     (json_length,) = np.frombuffer(head, "<u4", 1, 12)
     try:
         document = json.loads(bytes(buffer[20 : 20 + min(int(json_length), size - 20)]))
-        required = document.get("extensionsRequired", []) if isinstance(document, dict) else []
     except (ValueError, UnicodeDecodeError):
-        required = []  # the GLB reader says what is wrong with the JSON
-    for extension in ("EXT_meshopt_compression", "KHR_meshopt_compression"):
-        if isinstance(required, list) and extension in required:
-            raise MeshFileError(
-                f"the GLB is compressed with {extension}, which this reader does not "
-                "decode: decompress it first (gltfpack -i in.glb -o out.glb -noq)"
-            )
+        document = None  # the GLB reader says what is wrong with the JSON
+    # Meshopt compression (EXT_ and KHR_meshopt_compression) and Draco are decoded, and
+    # KHR_mesh_quantization read; any other required extension that changes how geometry
+    # is stored cannot be read right.
+    unread = unread_required_extensions(document)
+    if unread:
+        raise MeshFileError(
+            f"the GLB requires the extension{'s' if len(unread) > 1 else ''} "
+            f"{', '.join(unread)}, which meshbits does not read"
+        )
     offset, number = 12, 0
     while offset + 8 <= min(length, size):
         (chunk,) = np.frombuffer(buffer, "<u4", 1, offset)

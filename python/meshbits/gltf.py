@@ -4,9 +4,13 @@ ones and everything else copied as it was.
 
 pygltflib holds the document (JSON as a dict); numpy reads accessors: any component type,
 ``byteStride``, normalized integers, sparse accessors, and primitives already compressed
-with ``KHR_draco_mesh_compression`` (decoded with DracoPy). OBJ (with MTL and textures),
-PLY (with colours) and the other formats trimesh reads come in through trimesh's own glTF
-export, so UV seams stay split and textures keep their bytes.
+with ``KHR_draco_mesh_compression`` (decoded with DracoPy). Buffer views compressed with
+``EXT_meshopt_compression`` or ``KHR_meshopt_compression`` are decoded when the document
+is read (meshoptimizer's decoders in the Rust core), so the rest of the reader sees plain
+bytes; their accessors are mostly ``KHR_mesh_quantization`` integers, whose dequantization
+is in the node transforms. OBJ (with MTL and textures), PLY (with colours) and the other
+formats trimesh reads come in through trimesh's own glTF export, so UV seams stay split and
+textures keep their bytes.
 """
 
 from __future__ import annotations
@@ -21,14 +25,19 @@ from typing import Any
 
 import numpy as np
 
+from . import _core
 from .errors import MeshbitsError, MeshFileError
 
 __all__ = [
     "COMPONENT_DTYPES",
+    "MESHOPT_EXTENSIONS",
     "Document",
     "PrimitiveData",
     "image_size",
     "load_document",
+    "load_meshopt_document",
+    "unread_required_extensions",
+    "uses_meshopt",
 ]
 
 #: numpy dtype of each glTF component type.
@@ -50,6 +59,47 @@ WIDTH_TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
 TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN = 4, 5, 6
 
 GLB_MAGIC = b"glTF"
+
+#: The bufferView compressions the reader decodes (meshoptimizer's codecs).
+MESHOPT_EXTENSIONS = ("EXT_meshopt_compression", "KHR_meshopt_compression")
+
+#: Extensions that change how geometry is stored, which the reader decodes, and one that
+#: the scene writer carries over as it is (``EXT_mesh_gpu_instancing``).
+READ_EXTENSIONS = frozenset(
+    {"KHR_draco_mesh_compression", "KHR_mesh_quantization", "EXT_mesh_gpu_instancing"}
+    | set(MESHOPT_EXTENSIONS)
+)
+
+#: Families of extensions that leave the geometry as glTF stores it (materials, textures,
+#: images, lights, metadata): a reader of meshes may skip them, required or not.
+GEOMETRY_NEUTRAL_PREFIXES = (
+    "KHR_materials_",
+    "KHR_texture_",
+    "EXT_texture_",
+    "MSFT_texture_",
+    "KHR_lights_",
+    "EXT_lights_",
+    "KHR_xmp",
+    "KHR_animation_pointer",
+    "KHR_node_visibility",
+)
+
+#: Largest ``count`` or ``byteStride`` of a meshopt bufferView the reader takes.
+_MESHOPT_LIMIT = 1 << 62
+
+
+def unread_required_extensions(document: Any) -> list[str]:
+    """The extensions a document requires (``extensionsRequired``) that change how its
+    geometry is stored and that meshbits does not decode: a reader must refuse it."""
+    required = document.get("extensionsRequired") if isinstance(document, dict) else None
+    if not isinstance(required, list):
+        return []
+    names = [str(name) for name in required]
+    return [
+        name
+        for name in names
+        if name not in READ_EXTENSIONS and not name.startswith(GEOMETRY_NEUTRAL_PREFIXES)
+    ]
 
 
 def _normalized(values: np.ndarray) -> np.ndarray:
@@ -122,12 +172,16 @@ class Document:
         asset = data.get("asset", {})
         if not str(asset.get("version", "")).startswith("2."):
             raise MeshFileError(f"not a glTF 2.0 document (asset.version {asset.get('version')!r})")
+        #: The bytes of each bufferView compressed with meshopt, decoded.
+        self.decoded_views: dict[int, bytes] = self._decode_meshopt_views()
 
     # --- raw data -----------------------------------------------------------------------
 
     def view_bytes(self, index: int) -> memoryview:
-        """The bytes of a bufferView."""
+        """The bytes of a bufferView (decoded, for one compressed with meshopt)."""
         view = self._item("bufferViews", index)
+        if index in self.decoded_views:
+            return memoryview(self.decoded_views[index])
         buffer = view.get("buffer", 0)
         if not 0 <= buffer < len(self.buffers):
             raise MeshFileError(f"bufferView {index} refers to missing buffer {buffer}")
@@ -139,6 +193,84 @@ class Document:
                 f"bufferView {index} ends at byte {end}, past its buffer's {len(data)}"
             )
         return memoryview(data)[start:end]
+
+    def _decode_meshopt_views(self) -> dict[int, bytes]:
+        """Every bufferView carrying ``EXT_meshopt_compression`` or
+        ``KHR_meshopt_compression``, decoded to the plain bytes its layout declares."""
+        out: dict[int, bytes] = {}
+        views = self.json.get("bufferViews") or []
+        for index, view in enumerate(views if isinstance(views, list) else []):
+            extensions = view.get("extensions") if isinstance(view, dict) else None
+            if not isinstance(extensions, dict):
+                continue
+            names = [name for name in MESHOPT_EXTENSIONS if name in extensions]
+            if len(names) > 1:
+                raise MeshFileError(
+                    f"bufferView {index} carries both EXT_meshopt_compression and "
+                    "KHR_meshopt_compression, which the extensions forbid"
+                )
+            if names:
+                out[index] = self._decode_meshopt_view(index, view, names[0])
+        return out
+
+    def _decode_meshopt_view(self, index: int, view: dict[str, Any], name: str) -> bytes:
+        """One bufferView's meshopt stream decoded (the extension's rules checked)."""
+        where = f"bufferView {index} ({name})"
+        spec = view["extensions"][name]
+        if not isinstance(spec, dict):
+            raise MeshFileError(f"{where}: the extension is not an object")
+        fields = {}
+        for key, default in (
+            ("buffer", None),
+            ("byteOffset", 0),
+            ("byteLength", None),
+            ("byteStride", None),
+            ("count", None),
+        ):
+            value = spec.get(key, default)
+            if value is None:
+                raise MeshFileError(f"{where}: the extension has no {key}")
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise MeshFileError(f"{where}: {key} is {value!r}, not a whole number >= 0")
+            if value > _MESHOPT_LIMIT:
+                raise MeshFileError(f"{where}: {key} {value:,} is beyond any file's size")
+            fields[key] = value
+        mode = spec.get("mode")
+        filter_name = spec.get("filter", "NONE")
+        if filter_name == "COLOR" and name == "EXT_meshopt_compression":
+            raise MeshFileError(
+                f"{where}: the COLOR filter belongs to KHR_meshopt_compression, not "
+                "EXT_meshopt_compression"
+            )
+        if not isinstance(mode, str) or not isinstance(filter_name, str):
+            raise MeshFileError(f"{where}: mode {mode!r} or filter {filter_name!r} is not a name")
+        buffer, offset, length = fields["buffer"], fields["byteOffset"], fields["byteLength"]
+        count, stride = fields["count"], fields["byteStride"]
+        if buffer >= len(self.buffers):
+            raise MeshFileError(f"{where}: the compressed data is in missing buffer {buffer}")
+        data = self.buffers[buffer]
+        if offset + length > len(data):
+            raise MeshFileError(
+                f"{where}: the compressed data ends at byte {offset + length:,}, past its "
+                f"buffer's {len(data):,}"
+                + (" (a fallback buffer, which holds none)" if not data else "")
+            )
+        declared = view.get("byteLength")
+        if declared != count * stride:
+            raise MeshFileError(
+                f"{where}: {count:,} elements of {stride} bytes make {count * stride:,} bytes, "
+                f"but the bufferView's byteLength is {declared!r}"
+            )
+        if view.get("byteStride") is not None and view["byteStride"] != stride:
+            raise MeshFileError(
+                f"{where}: byteStride {stride} differs from the bufferView's {view['byteStride']!r}"
+            )
+        try:
+            return _core.meshopt_decode(
+                bytes(memoryview(data)[offset : offset + length]), count, stride, mode, filter_name
+            )
+        except MeshbitsError as err:
+            raise MeshFileError(f"{where}: {err}") from None
 
     def _item(self, kind: str, index: int) -> dict[str, Any]:
         items = self.json.get(kind, [])
@@ -245,7 +377,11 @@ class Document:
         else:
             attributes, types = {}, {}
             for name, acc in prim.get("attributes", {}).items():
-                attributes[name] = self.accessor(acc, normalize=not name.startswith("JOINTS_"))
+                joints = name.startswith("JOINTS_")
+                values = self.accessor(acc, normalize=not joints)
+                # KHR_mesh_quantization: integers that are not normalized are values as
+                # they are (positions as grid codes, their scale in the node transforms).
+                attributes[name] = values if joints else values.astype(np.float64, copy=False)
                 spec = self._item("accessors", acc)
                 types[name] = (int(spec["componentType"]), bool(spec.get("normalized", False)))
             if "POSITION" not in attributes:
@@ -352,6 +488,21 @@ class Document:
         for m in range(len(self.json.get("meshes", []))):
             out.setdefault(m, [(-1, np.eye(4))])
         return out
+
+    def world_triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every triangle primitive at each of its instances (:meth:`mesh_instances`), in
+        world coordinates, as one mesh: ``(vertices float64 (n, 3), faces int64 (m, 3))``,
+        what trimesh makes of a scene with its node transforms applied."""
+        instances = self.mesh_instances()
+        vertices, faces, offset = [], [], 0
+        for data in self.triangle_primitives():
+            for _, matrix in instances.get(data.mesh, [(-1, np.eye(4))]):
+                vertices.append(data.positions @ matrix[:3, :3].T + matrix[:3, 3])
+                faces.append(data.faces + offset)
+                offset += len(data.positions)
+        if not faces or not sum(len(f) for f in faces):
+            raise MeshFileError("the document holds no triangles")
+        return np.concatenate(vertices), np.concatenate(faces)
 
     def animated_nodes(self) -> set[int]:
         """Nodes whose translation, rotation or scale an animation drives."""
@@ -472,6 +623,78 @@ def load_document(path: str | Path) -> Document:
         raise MeshFileError(f"cannot read {path} as a scene: {reason}") from err
 
 
+def _glb_json(head: bytes) -> Any:
+    """The JSON of a GLB file from its first bytes (None if they do not hold it)."""
+    if len(head) < 20 or head[:4] != GLB_MAGIC or head[16:20] != b"JSON":
+        return None
+    (length,) = struct.unpack("<I", head[12:16])
+    try:
+        return json.loads(head[20 : 20 + length].decode("utf-8"))
+    except (ValueError, UnicodeDecodeError):
+        return None
+
+
+def uses_meshopt(document: Any) -> bool:
+    """Whether a glTF JSON declares ``EXT_meshopt_compression`` or
+    ``KHR_meshopt_compression`` (in ``extensionsUsed`` or ``extensionsRequired``) or has a
+    bufferView that carries one."""
+    if not isinstance(document, dict):
+        return False
+    declared = [
+        name
+        for key in ("extensionsUsed", "extensionsRequired")
+        if isinstance(document.get(key), list)
+        for name in document[key]
+    ]
+    if any(name in MESHOPT_EXTENSIONS for name in declared):
+        return True
+    views = document.get("bufferViews") or []
+    return any(
+        isinstance(view, dict)
+        and isinstance(view.get("extensions"), dict)
+        and any(name in view["extensions"] for name in MESHOPT_EXTENSIONS)
+        for view in (views if isinstance(views, list) else [])
+    )
+
+
+def load_meshopt_document(
+    path: str | Path, file_type: str, data: bytes | None = None
+) -> Document | None:
+    """The document of a ``.glb`` or ``.gltf`` file (``file_type`` ``"glb"`` or
+    ``"gltf"``; its bytes ``data``, or read from ``path``) that uses meshopt compression,
+    its bufferViews decoded; None for any other file. Raises :class:`MeshFileError`
+    naming ``path`` when the file cannot be read."""
+    path = Path(path)
+    if file_type not in ("glb", "gltf"):
+        return None
+    if data is None:
+        with open(path, "rb") as handle:
+            head = handle.read(20)
+            if file_type == "glb" and len(head) == 20:
+                head += handle.read(struct.unpack("<I", head[12:16])[0])
+            else:
+                head += handle.read()
+    else:
+        head = data
+    try:
+        if file_type == "glb":
+            document = _glb_json(head)
+        else:
+            document = json.loads(head.decode("utf-8"))
+    except (ValueError, UnicodeDecodeError):
+        return None  # not this reader's to explain: the file's own reader does
+    if not uses_meshopt(document):
+        return None
+    if data is None:
+        return load_document(path)
+    try:
+        if file_type == "glb":
+            return _from_glb(data, path.parent)
+        return _from_gltf(document, path.parent)
+    except MeshFileError as err:
+        raise MeshFileError(f"cannot read {path}: {err}") from None
+
+
 def _from_glb(data: bytes, base: Path | None) -> Document:
     if not data:
         raise MeshFileError("the file is empty")
@@ -507,11 +730,17 @@ def _from_gltf(document: dict[str, Any], base: Path | None, binary: bytes = b"")
     buffers = []
     for i, buffer in enumerate(document.get("buffers", [])):
         uri = buffer.get("uri")
+        extensions = buffer.get("extensions") or {}
+        fallback = any(
+            isinstance(extensions.get(name), dict) and extensions[name].get("fallback")
+            for name in MESHOPT_EXTENSIONS
+        )
+        if fallback or (uri is None and i != 0):
+            # A fallback buffer of meshopt compression: its bufferViews are decoded from
+            # their compressed data (one without a uri has no data at all).
+            buffers.append(b"")
+            continue
         if uri is None:
-            if i != 0:
-                # A fallback buffer of EXT_meshopt_compression: no data.
-                buffers.append(b"")
-                continue
             data = binary
         elif uri.startswith("data:"):
             data = base64.b64decode(uri.partition(",")[2])
@@ -527,12 +756,6 @@ def _from_gltf(document: dict[str, Any], base: Path | None, binary: bytes = b"")
                 f"buffer {i} should hold {buffer.get('byteLength')} bytes, has {len(data)}"
             )
         buffers.append(data)
-    used = set(document.get("extensionsRequired", []))
-    if "EXT_meshopt_compression" in used or "KHR_meshopt_compression" in used:
-        raise MeshFileError(
-            "the document is compressed with EXT_meshopt_compression: decompress it first "
-            "(gltfpack -i in.glb -o out.glb -noq)"
-        )
     return Document(document, buffers, base)
 
 

@@ -1,9 +1,11 @@
 """Mesh files in and out, through trimesh.
 
 Reading: OBJ, PLY, STL, OFF, GLB/glTF and anything else trimesh reads, also gzip-compressed
-(``.gz``). A scene with several meshes is concatenated into one mesh in world coordinates
-(its node transforms applied); a file with no triangles is refused. Vertices are kept as
-stored (``process=False``): welding is the job of each algorithm (see ``merge_vertices``).
+(``.gz``); GLB/glTF compressed with meshopt (``EXT_meshopt_compression``,
+``KHR_meshopt_compression``) through meshbits's own glTF reader. A scene with several
+meshes is concatenated into one mesh in world coordinates (its node transforms applied); a
+file with no triangles is refused. Vertices are kept as stored (``process=False``):
+welding is the job of each algorithm (see ``merge_vertices``).
 """
 
 from __future__ import annotations
@@ -147,7 +149,9 @@ def parse_mesh_file(
 ) -> Any:
     """A checked mesh file (what :func:`checked_mesh_file` returned for ``path``) as a
     trimesh object: a Draco file (what ``meshbits compress -o x.drc`` writes) decoded with
-    DracoPy, anything else parsed by trimesh."""
+    DracoPy; a GLB or glTF compressed with ``EXT_meshopt_compression`` or
+    ``KHR_meshopt_compression`` (which trimesh does not decode) read by meshbits's glTF
+    reader, its meshes in world coordinates as one; anything else parsed by trimesh."""
     import trimesh
 
     if file_type == "drc":
@@ -155,6 +159,17 @@ def parse_mesh_file(
 
         data = source.read() if isinstance(source, _io.BytesIO) else path.read_bytes()
         return trimesh.Trimesh(*decode_draco(data), process=False)
+    if file_type in ("glb", "gltf"):
+        from .gltf import load_meshopt_document
+
+        data = source.getvalue() if isinstance(source, _io.BytesIO) else None
+        document = load_meshopt_document(path, file_type, data)
+        if document is not None:
+            try:
+                vertices, faces = document.world_triangles()
+            except MeshFileError as err:
+                raise MeshFileError(f"cannot read {path}: {err}") from None
+            return trimesh.Trimesh(vertices, faces, process=False)
     if compressed:
         return trimesh.load(source, file_type=file_type, process=False)
     return trimesh.load(path, process=False)

@@ -38,6 +38,7 @@ from .constants import (
 from .errors import MeshbitsError, MeshFileError
 from .gltf import (
     COMPONENT_TYPES,
+    MESHOPT_EXTENSIONS,
     WIDTH_TYPES,
     Document,
     PrimitiveData,
@@ -1384,6 +1385,10 @@ def _write(document: Document, jobs, encodings, codec: str, output) -> tuple[lis
     if not still_draco:
         extensions_used.discard("KHR_draco_mesh_compression")
         extensions_required.discard("KHR_draco_mesh_compression")
+    # A meshopt input's bufferViews were decoded on reading and are copied plain: only the
+    # compressed primitives written here use meshopt.
+    extensions_used.difference_update(MESHOPT_EXTENSIONS)
+    extensions_required.difference_update(MESHOPT_EXTENSIONS)
     new = {"KHR_draco_mesh_compression"} if codec == "draco" else {"EXT_meshopt_compression"}
     if codec == "meshopt":
         new.add("KHR_mesh_quantization")
@@ -1541,7 +1546,16 @@ def scene_info(path: str | Path) -> dict[str, Any]:
             if v in animation_views
             else "other"
         )
-        sizes[part] += int(view.get("byteLength", 0))
+        # What the file holds: a meshopt bufferView's compressed bytes.
+        compressed = next(
+            (
+                view["extensions"][name]
+                for name in MESHOPT_EXTENSIONS
+                if name in (view.get("extensions") or {})
+            ),
+            view,
+        )
+        sizes[part] += int(compressed.get("byteLength", 0))
     images = []
     for i, image in enumerate(j.get("images", [])):
         data, mime = document.image_bytes(i)
