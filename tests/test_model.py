@@ -806,6 +806,7 @@ def test_cli_plan_json(capsys):
     )
     assert out == {
         "mesh": MESH,
+        "length_unit": "mesh units",
         "mesh_vertices": out["mesh_vertices"],
         "mesh_faces": out["mesh_faces"],
         "estimator": "circumsphere",
