@@ -699,21 +699,3 @@ def test_a_threshold_decides_the_certified_bound():
     assert decided.distance <= tight.upper
     with pytest.raises(meshbits.MeshbitsError, match="threshold"):
         reference.hausdorff(clustered, tolerance=1e-6, threshold=float("nan"))
-
-
-def test_a_reference_built_in_the_background_measures_alike_and_raises_at_first_use():
-    """``compress`` builds its reference on a thread while it computes K and simplifies:
-    the same tree and samples, so the same distances; a build that fails raises when the
-    reference is first used."""
-    bunny = load("bunny.ply")
-    spot = meshbits.load_mesh(meshbits.example_mesh_path())
-    coarse = meshbits.simplify(bunny, vertices=2000).mesh
-    now = meshbits.Reference(bunny, samples=20_000, seed=3)
-    later = meshbits.Reference(bunny, samples=20_000, seed=3, background=True)
-    assert later.n_samples == now.n_samples
-    for a, b in ((later, now), (now, later)):
-        assert a.hausdorff(coarse).to_dict() == b.hausdorff(coarse).to_dict()
-    assert later.quick_distance(coarse) == now.quick_distance(coarse)
-    tangle = meshbits.Reference(_overlapping_fans(5688), background=True)
-    with pytest.raises(meshbits.MeshbitsError, match="overlap"):
-        tangle.hausdorff(spot)

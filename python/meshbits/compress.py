@@ -312,9 +312,6 @@ def compress(
     # A tangle (fan-triangulated polygons of hundreds of corners) takes fast-simplification
     # and the Hausdorff BVH minutes to hours: one of 245k faces on 507 vertices, 3 minutes.
     check_untangled(len(original[1]), available, "compressed")
-    count = max(default_samples(len(original[1])), MIN_SAMPLES) if samples is None else int(samples)
-    # Built while K is computed and the first level is simplified.
-    reference = Reference(original, samples=count, seed=seed, background=True)
     start = time.perf_counter()
     complexity = shape_complexity(original, estimator=estimator)
     seconds = {"complexity": time.perf_counter() - start}
@@ -327,6 +324,10 @@ def compress(
         budget *= grid_size
     max_bits = min(FORMAT_MAX_BITS[format], precision_bits(original[0], grid_size))
 
+    start = time.perf_counter()
+    count = max(default_samples(len(original[1])), MIN_SAMPLES) if samples is None else int(samples)
+    reference = Reference(original, samples=count, seed=seed)
+    seconds["reference"] = time.perf_counter() - start
     search = Search(
         original,
         reference,

@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 import numbers
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -595,56 +594,20 @@ class Reference:
         Area samples of the reference (default :func:`default_samples` of its faces).
     seed : int
         Seed of every sample set, the reference's and the candidates'.
-    background : bool
-        Build the BVH and the samples on a thread of their own, and return at once: the
-        first use waits for them (and raises what building them raised). ``compress``
-        builds its reference while it computes K and makes its first simplified level
-        (meshoptimizer runs on one core).
     """
 
-    def __init__(
-        self,
-        mesh: MeshLike,
-        *,
-        samples: int | None = None,
-        seed: int = 0,
-        background: bool = False,
-    ) -> None:
+    def __init__(self, mesh: MeshLike, *, samples: int | None = None, seed: int = 0) -> None:
         self.vertices, self.faces = as_mesh(mesh)
+        self._tree = _core.build_tree(self.vertices, self.faces)
+        refuse_overlap(self._tree.box_overlap, len(self.faces))
         self.seed = _check_seed(seed)
         self.samples = (
             default_samples(len(self.faces))
             if samples is None
             else _check_count(samples, "samples")
         )
+        self._sampled = _core.sample_mesh(self.vertices, self.faces, self.samples, self.seed)
         self._quick: tuple[int, _core.SampledMesh] | None = None
-        self._built: tuple[Any, Any] | None = None
-        self._building: Future[tuple[Any, Any]] | None = None
-        if background:
-            executor = ThreadPoolExecutor(1, thread_name_prefix="meshbits-reference")
-            self._building = executor.submit(self._build)
-            executor.shutdown(wait=False)
-        else:
-            self._built = self._build()
-
-    def _build(self) -> tuple[Any, Any]:
-        tree = _core.build_tree(self.vertices, self.faces)
-        refuse_overlap(tree.box_overlap, len(self.faces))
-        return tree, _core.sample_mesh(self.vertices, self.faces, self.samples, self.seed)
-
-    def _parts(self) -> tuple[Any, Any]:
-        if self._built is None:
-            assert self._building is not None
-            self._built = self._building.result()
-        return self._built
-
-    @property
-    def _tree(self) -> Any:
-        return self._parts()[0]
-
-    @property
-    def _sampled(self) -> Any:
-        return self._parts()[1]
 
     @property
     def n_samples(self) -> int:
