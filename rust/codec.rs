@@ -31,6 +31,17 @@ const VERTEX_LEVEL: i32 = 2;
 /// Encodes `count` records of `stride` bytes each (`data.len() == count * stride`) with
 /// the vertex codec. Refuses a stride that is not a multiple of 4 in `4..=256`.
 pub fn encode_vertices(data: &[u8], stride: usize) -> Result<Vec<u8>, MeshError> {
+    encode_vertices_in(data, stride, VERTEX_VERSION, VERTEX_LEVEL)
+}
+
+/// [`encode_vertices`] in bitstream `version` (0 or 1) at compression `level` (0 to 3,
+/// version 1 only).
+fn encode_vertices_in(
+    data: &[u8],
+    stride: usize,
+    version: i32,
+    level: i32,
+) -> Result<Vec<u8>, MeshError> {
     if stride == 0 || !stride.is_multiple_of(4) || stride > 256 {
         return Err(MeshError::Parameter(format!(
             "vertex records must be a multiple of 4 bytes, at most 256, got {stride}"
@@ -55,8 +66,8 @@ pub fn encode_vertices(data: &[u8], stride: usize) -> Result<Vec<u8>, MeshError>
             data.as_ptr().cast(),
             count,
             stride,
-            VERTEX_LEVEL,
-            VERTEX_VERSION,
+            level,
+            version,
         );
         if size == 0 && count > 0 {
             return Err(MeshError::Parameter(
@@ -416,35 +427,19 @@ pub fn decode_triangles(
     count: usize,
     index_size: usize,
 ) -> Result<Decoded, MeshError> {
-    check_index_size(index_size)?;
     if !count.is_multiple_of(3) {
         return Err(MeshError::Parameter(format!(
             "a meshopt TRIANGLES stream has a multiple of 3 indices, got a count of {count}"
         )));
     }
-    let len = decoded_len(count, index_size)?;
     // The decoder's own minimum: the header, a byte a triangle, a 16-byte table.
     let minimum = 1 + count / 3 + 16;
-    if data.len() < minimum {
-        return Err(too_short("index", data, count, "indices", minimum));
-    }
-    let mut out = Decoded::zeroed(len)?;
     // SAFETY: `out` holds `count * index_size` writable bytes, 4-byte aligned; `count` is
     // a multiple of 3 and `index_size` 2 or 4 (the decoder's debug assertions); it reads
     // at most `data.len()` bytes of `data`.
-    let code = unsafe {
-        meshopt::ffi::meshopt_decodeIndexBuffer(
-            out.words.as_mut_ptr().cast(),
-            count,
-            index_size,
-            data.as_ptr(),
-            data.len(),
-        )
-    };
-    if code != 0 {
-        return Err(decoder_error(code, "index", data, count, "indices"));
-    }
-    Ok(out)
+    decode_indices("index", data, count, index_size, minimum, |out| unsafe {
+        meshopt::ffi::meshopt_decodeIndexBuffer(out, count, index_size, data.as_ptr(), data.len())
+    })
 }
 
 /// Decodes `count` indices of `index_size` bytes (2 or 4, little-endian) from an index
@@ -455,33 +450,48 @@ pub fn decode_index_sequence(
     count: usize,
     index_size: usize,
 ) -> Result<Decoded, MeshError> {
-    check_index_size(index_size)?;
-    let len = decoded_len(count, index_size)?;
     // The decoder's own minimum: the header, a byte an index, a 4-byte tail.
     let minimum = count.saturating_add(5);
-    if data.len() < minimum {
-        return Err(too_short("index sequence", data, count, "indices", minimum));
-    }
-    let mut out = Decoded::zeroed(len)?;
     // SAFETY: `out` holds `count * index_size` writable bytes, 4-byte aligned, and
     // `index_size` is 2 or 4; the decoder reads at most `data.len()` bytes of `data`.
-    let code = unsafe {
-        meshopt::ffi::meshopt_decodeIndexSequence(
-            out.words.as_mut_ptr().cast(),
-            count,
-            index_size,
-            data.as_ptr(),
-            data.len(),
-        )
-    };
+    decode_indices(
+        "index sequence",
+        data,
+        count,
+        index_size,
+        minimum,
+        |out| unsafe {
+            meshopt::ffi::meshopt_decodeIndexSequence(
+                out,
+                count,
+                index_size,
+                data.as_ptr(),
+                data.len(),
+            )
+        },
+    )
+}
+
+/// `count` indices of `index_size` bytes (2 or 4) from `data` by `decode`, which writes
+/// them to the buffer it is given and returns the C decoder's code: the checks both index
+/// codecs share (the index size, the stream's `minimum` length, the code).
+fn decode_indices(
+    codec: &str,
+    data: &[u8],
+    count: usize,
+    index_size: usize,
+    minimum: usize,
+    decode: impl FnOnce(*mut std::ffi::c_void) -> i32,
+) -> Result<Decoded, MeshError> {
+    check_index_size(index_size)?;
+    let len = decoded_len(count, index_size)?;
+    if data.len() < minimum {
+        return Err(too_short(codec, data, count, "indices", minimum));
+    }
+    let mut out = Decoded::zeroed(len)?;
+    let code = decode(out.words.as_mut_ptr().cast());
     if code != 0 {
-        return Err(decoder_error(
-            code,
-            "index sequence",
-            data,
-            count,
-            "indices",
-        ));
+        return Err(decoder_error(code, codec, data, count, "indices"));
     }
     Ok(out)
 }
@@ -659,23 +669,7 @@ mod tests {
     /// A vertex codec stream in bitstream version 1 (what `KHR_meshopt_compression` may
     /// hold; meshbits writes version 0).
     fn encode_vertices_v1(records: &[u8], stride: usize) -> Vec<u8> {
-        let count = records.len() / stride;
-        // SAFETY: as in `encode_vertices`.
-        unsafe {
-            let bound = meshopt::ffi::meshopt_encodeVertexBufferBound(count, stride);
-            let mut out = vec![0u8; bound];
-            let size = meshopt::ffi::meshopt_encodeVertexBufferLevel(
-                out.as_mut_ptr(),
-                out.len(),
-                records.as_ptr().cast(),
-                count,
-                stride,
-                3,
-                1,
-            );
-            out.truncate(size);
-            out
-        }
+        encode_vertices_in(records, stride, 1, 3).unwrap()
     }
 
     /// Deterministic pseudo-random bytes (xorshift).

@@ -32,3 +32,16 @@ def horse() -> tuple[np.ndarray, np.ndarray]:
 )
 def real_mesh(request: pytest.FixtureRequest) -> tuple[str, np.ndarray, np.ndarray]:
     return (request.param, *load(request.param))
+
+
+#: numpy dtype of each glTF accessor componentType, and the components of each type: for
+#: the tests' own accessor readers, written from the glTF 2.0 spec, not from meshbits.
+GLTF_DTYPES = {
+    5120: np.int8,
+    5121: np.uint8,
+    5122: np.int16,
+    5123: np.uint16,
+    5125: np.uint32,
+    5126: np.float32,
+}
+GLTF_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}

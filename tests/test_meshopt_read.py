@@ -16,6 +16,7 @@ import numpy as np
 import pygltflib
 import pytest
 import trimesh
+from conftest import GLTF_DTYPES, GLTF_WIDTHS
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -28,15 +29,6 @@ from meshbits.io import example_mesh_path
 meshopt = pytest.importorskip("meshopt")
 
 MESHOPT = ("EXT_meshopt_compression", "KHR_meshopt_compression")
-DTYPES = {
-    5120: np.int8,
-    5121: np.uint8,
-    5122: np.int16,
-    5123: np.uint16,
-    5125: np.uint32,
-    5126: np.float32,
-}
-WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 ERROR = 0.002  # of the scene's size
 
 
@@ -78,8 +70,8 @@ def view_data(doc: dict, buffers: list[bytes], index: int) -> bytes:
 
 def accessor_values(doc: dict, buffers: list[bytes], index: int, normalize=True) -> np.ndarray:
     spec = doc["accessors"][index]
-    dtype = np.dtype(DTYPES[spec["componentType"]])
-    width, count = WIDTHS[spec["type"]], spec["count"]
+    dtype = np.dtype(GLTF_DTYPES[spec["componentType"]])
+    width, count = GLTF_WIDTHS[spec["type"]], spec["count"]
     view = doc["bufferViews"][spec["bufferView"]]
     data = view_data(doc, buffers, spec["bufferView"])
     element = dtype.itemsize * width

@@ -16,6 +16,7 @@ import numpy as np
 import pygltflib
 import pytest
 import trimesh
+from conftest import GLTF_DTYPES, GLTF_WIDTHS
 
 import meshbits
 from meshbits.cli import main
@@ -261,15 +262,8 @@ def scene_file(tmp_path_factory) -> tuple[Path, dict]:
 
 def _accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
     spec = doc["accessors"][index]
-    dtype = {
-        5120: np.int8,
-        5121: np.uint8,
-        5122: np.int16,
-        5123: np.uint16,
-        5125: np.uint32,
-        5126: np.float32,
-    }[spec["componentType"]]
-    width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}[spec["type"]]
+    dtype = GLTF_DTYPES[spec["componentType"]]
+    width = GLTF_WIDTHS[spec["type"]]
     view = doc["bufferViews"][spec["bufferView"]]
     ext = (view.get("extensions") or {}).get("EXT_meshopt_compression")
     if ext:

@@ -263,28 +263,9 @@ def test_with_nothing_expected_to_meet_a_finer_level_then_the_original_is_measur
     meet the budget, then at the next B once that missed."""
     from types import SimpleNamespace
 
-    from meshbits.hausdorff import Reference
     from meshbits.search import Search
 
-    vertices, faces = SPOT
-    complexity = meshbits.shape_complexity(SPOT)
-    budget = 0.002 * complexity.grid_size
-    search = Search(
-        (vertices, faces),
-        Reference((vertices, faces), samples=10_000, seed=0),
-        constraint="error",
-        budget=budget,
-        k=complexity.k,
-        grid_size=complexity.grid_size,
-        max_bits=16,
-        format="draco",
-        alpha=compress_module.DRACO_ALPHA,
-        connectivity_bits=compress_module.DRACO_CONNECTIVITY_BITS,
-        method="meshopt",
-        simplifier=None,
-        lods=None,
-        samples=10_000,
-    )
+    search, budget = _spot_search(0.002)
     monkeypatch.setattr(Search, "_error_candidates", lambda self: [])
     coarse = search._simplified("meshopt", vertices=300)
     fine = search._simplified("meshopt", vertices=1500)
@@ -324,27 +305,9 @@ def test_exploring_takes_the_smallest_built_level_predicted_within_the_wide_aim(
     and only within EXPLORE_WIDE times the budget."""
     from types import SimpleNamespace
 
-    from meshbits.hausdorff import Reference
     from meshbits.search import EXPLORE_WIDE, STOP_GAIN, Search, _Candidate
 
-    complexity = meshbits.shape_complexity(SPOT)
-    budget = 0.002 * complexity.grid_size
-    search = Search(
-        SPOT,
-        Reference(SPOT, samples=10_000, seed=0),
-        constraint="error",
-        budget=budget,
-        k=complexity.k,
-        grid_size=complexity.grid_size,
-        max_bits=16,
-        format="draco",
-        alpha=compress_module.DRACO_ALPHA,
-        connectivity_bits=compress_module.DRACO_CONNECTIVITY_BITS,
-        method="meshopt",
-        simplifier=None,
-        lods=None,
-        samples=10_000,
-    )
+    search, budget = _spot_search(0.002)
     levels = [search._simplified("meshopt", vertices=n) for n in (400, 800, 1600)]
     bits = search._error_bits()[0]
     best = SimpleNamespace(measured_size_bits=1e9, met=True)
@@ -363,3 +326,30 @@ def test_exploring_takes_the_smallest_built_level_predicted_within_the_wide_aim(
     best.measured_size_bits = 2e5 / (1 - STOP_GAIN) * 0.999
     assert search._exploring(best) is None
     assert search._exploring(None) is None
+
+
+def _spot_search(relative_budget: float):
+    """A search (meshoptimizer, Draco) for an error budget on the spot, and the budget in
+    mesh units."""
+    from meshbits.hausdorff import Reference
+    from meshbits.search import Search
+
+    complexity = meshbits.shape_complexity(SPOT)
+    budget = relative_budget * complexity.grid_size
+    search = Search(
+        SPOT,
+        Reference(SPOT, samples=10_000, seed=0),
+        constraint="error",
+        budget=budget,
+        k=complexity.k,
+        grid_size=complexity.grid_size,
+        max_bits=16,
+        format="draco",
+        alpha=compress_module.DRACO_ALPHA,
+        connectivity_bits=compress_module.DRACO_CONNECTIVITY_BITS,
+        method="meshopt",
+        simplifier=None,
+        lods=None,
+        samples=10_000,
+    )
+    return search, budget
