@@ -427,6 +427,7 @@ pub fn decode_triangles(
     count: usize,
     index_size: usize,
 ) -> Result<Decoded, MeshError> {
+    check_index_size(index_size)?;
     if !count.is_multiple_of(3) {
         return Err(MeshError::Parameter(format!(
             "a meshopt TRIANGLES stream has a multiple of 3 indices, got a count of {count}"

@@ -412,7 +412,13 @@ def test_json_reports_name_the_unit_of_their_lengths(tmp_path, capsys):
         ("quantize", bunny, "--bits", "8"),
     ):
         assert run_json(capsys, *argv)["length_unit"] == "mesh units", argv
-    for argv in (("k", str(glb)), ("info", str(glb)), ("hausdorff", str(glb), str(glb))):
+    for argv in (
+        ("k", str(glb)),
+        ("info", str(glb)),
+        ("hausdorff", str(glb), str(glb)),
+        ("hausdorff", bunny, str(glb), "--samples", "1000"),
+        ("hausdorff", str(glb), bunny, "--samples", "1000"),
+    ):
         assert run_json(capsys, *argv)["length_unit"] == "m", argv
     out = tmp_path / "out"
     assert main(["batch", str(glb), "-o", str(out), "--error", "0.01", "--relative", "--json"]) == 0

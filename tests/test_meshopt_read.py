@@ -503,11 +503,31 @@ def test_draco_files_read_as_before(written, tmp_path):
         start = view.get("byteOffset", 0)
         decoded = DracoPy.decode(buffers[0][start : start + view["byteLength"]])
         np.testing.assert_array_equal(data.positions, np.asarray(decoded.points, dtype=np.float64))
-    vertices, faces = meshbits.load_mesh(out)  # through trimesh, as before
+    vertices, faces = meshbits.load_mesh(out)
     assert len(faces) == sum(r.faces for r in result.primitives)
     assert meshbits.hausdorff(
         meshbits.load_mesh(written["source"]), (vertices, faces)
     ).distance <= (result.world_error_upper)
+
+
+def test_a_draco_primitive_that_does_not_decode_is_refused(written, tmp_path, capsys):
+    """One byte changed in the middle of a GLB's Draco data: trimesh read the primitive as
+    zeros with only a log message, so ``k`` and ``hausdorff`` measured a mesh at the
+    origin (exit 0) while ``info`` refused the file."""
+    out = tmp_path / "draco.glb"
+    meshbits.compress_scene(written["source"], error=ERROR, relative=True, output=out)
+    doc, buffers = read_independently(out)
+    draco = doc["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]
+    view = doc["bufferViews"][draco["bufferView"]]
+    blob = bytearray(buffers[0])
+    blob[view.get("byteOffset", 0) + view["byteLength"] // 2] ^= 0xFF
+    flipped = tmp_path / "flipped.glb"
+    flipped.write_bytes(glb_bytes(doc, bytes(blob)))
+    with pytest.raises(meshbits.MeshbitsError, match="Draco"):
+        meshbits.load_mesh(flipped)
+    for argv in (["k", str(flipped)], ["hausdorff", str(out), str(flipped), "--quiet"]):
+        assert main(argv) == 2
+        one_line(capsys.readouterr().err)
 
 
 def test_an_unknown_required_extension_is_still_refused(written, tmp_path):

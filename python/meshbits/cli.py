@@ -1267,7 +1267,9 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
     if args.colors is not None:
         report["colors"] = _write_colors(meshes["a"], meshes["b"], args)
     if args.json:
-        _print_json(report, args.a)
+        # A file without units measured against glTF is taken in meters, glTF's unit.
+        gltf = [p for p in (args.a, args.b) if length_unit_of(p) == "m"]
+        _print_json(report, gltf[0] if gltf else args.a)
         return EXIT_OK
     rows: list[tuple[str, Any]] = [("Hausdorff distance (sampled)", result.distance)]
     if result.upper is not None:

@@ -34,9 +34,10 @@ __all__ = [
     "Document",
     "PrimitiveData",
     "image_size",
+    "load_compressed_document",
     "load_document",
-    "load_meshopt_document",
     "unread_required_extensions",
+    "uses_draco",
     "uses_meshopt",
 ]
 
@@ -63,11 +64,13 @@ GLB_MAGIC = b"glTF"
 #: The bufferView compressions the reader decodes (meshoptimizer's codecs).
 MESHOPT_EXTENSIONS = ("EXT_meshopt_compression", "KHR_meshopt_compression")
 
+#: The primitive compression the reader decodes (with DracoPy).
+DRACO = "KHR_draco_mesh_compression"
+
 #: Extensions that change how geometry is stored, which the reader decodes, and one that
 #: the scene writer carries over as it is (``EXT_mesh_gpu_instancing``).
 READ_EXTENSIONS = frozenset(
-    {"KHR_draco_mesh_compression", "KHR_mesh_quantization", "EXT_mesh_gpu_instancing"}
-    | set(MESHOPT_EXTENSIONS)
+    {DRACO, "KHR_mesh_quantization", "EXT_mesh_gpu_instancing"} | set(MESHOPT_EXTENSIONS)
 )
 
 #: Families of extensions that leave the geometry as glTF stores it (materials, textures,
@@ -371,7 +374,7 @@ class Document:
         mode = prim.get("mode", TRIANGLES)
         if mode not in (TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN):
             return None
-        draco = (prim.get("extensions") or {}).get("KHR_draco_mesh_compression")
+        draco = (prim.get("extensions") or {}).get(DRACO)
         if draco is not None:
             attributes, indices, types = self._draco(prim, draco)
         else:
@@ -657,13 +660,27 @@ def uses_meshopt(document: Any) -> bool:
     )
 
 
-def load_meshopt_document(
+def uses_draco(document: Any) -> bool:
+    """Whether a glTF JSON declares ``KHR_draco_mesh_compression`` (in
+    ``extensionsUsed`` or ``extensionsRequired``)."""
+    if not isinstance(document, dict):
+        return False
+    return any(
+        isinstance(document.get(key), list) and DRACO in document[key]
+        for key in ("extensionsUsed", "extensionsRequired")
+    )
+
+
+def load_compressed_document(
     path: str | Path, file_type: str, data: bytes | None = None
 ) -> Document | None:
     """The document of a ``.glb`` or ``.gltf`` file (``file_type`` ``"glb"`` or
-    ``"gltf"``; its bytes ``data``, or read from ``path``) that uses meshopt compression,
-    its bufferViews decoded; None for any other file. Raises :class:`MeshFileError`
-    naming ``path`` when the file cannot be read."""
+    ``"gltf"``; its bytes ``data``, or read from ``path``) whose geometry is compressed
+    with meshopt or Draco, for this reader to decode: trimesh does not decode meshopt,
+    and it reads a Draco primitive it cannot decode as zeros with only a log message
+    (a GLB with one byte of its Draco data changed gave ``k`` a mesh at the origin).
+    None for any other file. Raises :class:`MeshFileError` naming ``path`` when the file
+    cannot be read."""
     path = Path(path)
     if file_type not in ("glb", "gltf"):
         return None
@@ -683,7 +700,7 @@ def load_meshopt_document(
             document = json.loads(head.decode("utf-8"))
     except (ValueError, UnicodeDecodeError):
         return None  # not this reader's to explain: the file's own reader does
-    if not uses_meshopt(document):
+    if not (uses_meshopt(document) or uses_draco(document)):
         return None
     if data is None:
         return load_document(path)

@@ -2,7 +2,8 @@
 
 Reading: OBJ, PLY, STL, OFF, GLB/glTF and anything else trimesh reads, also gzip-compressed
 (``.gz``); GLB/glTF compressed with meshopt (``EXT_meshopt_compression``,
-``KHR_meshopt_compression``) through meshbits's own glTF reader. A scene with several
+``KHR_meshopt_compression``) or Draco (``KHR_draco_mesh_compression``) through meshbits's
+own glTF reader, which refuses a primitive it cannot decode. A scene with several
 meshes is concatenated into one mesh in world coordinates (its node transforms applied); a
 file with no triangles is refused. Vertices are kept as stored (``process=False``):
 welding is the job of each algorithm (see ``merge_vertices``).
@@ -149,9 +150,11 @@ def parse_mesh_file(
 ) -> Any:
     """A checked mesh file (what :func:`checked_mesh_file` returned for ``path``) as a
     trimesh object: a Draco file (what ``meshbits compress -o x.drc`` writes) decoded with
-    DracoPy; a GLB or glTF compressed with ``EXT_meshopt_compression`` or
-    ``KHR_meshopt_compression`` (which trimesh does not decode) read by meshbits's glTF
-    reader, its meshes in world coordinates as one; anything else parsed by trimesh."""
+    DracoPy; a GLB or glTF compressed with ``EXT_meshopt_compression``,
+    ``KHR_meshopt_compression`` (which trimesh does not decode) or
+    ``KHR_draco_mesh_compression`` (which trimesh reads as zeros when it cannot decode it)
+    read by meshbits's glTF reader, its meshes in world coordinates as one; anything else
+    parsed by trimesh."""
     import trimesh
 
     if file_type == "drc":
@@ -160,10 +163,10 @@ def parse_mesh_file(
         data = source.read() if isinstance(source, _io.BytesIO) else path.read_bytes()
         return trimesh.Trimesh(*decode_draco(data), process=False)
     if file_type in ("glb", "gltf"):
-        from .gltf import load_meshopt_document
+        from .gltf import load_compressed_document
 
         data = source.getvalue() if isinstance(source, _io.BytesIO) else None
-        document = load_meshopt_document(path, file_type, data)
+        document = load_compressed_document(path, file_type, data)
         if document is not None:
             try:
                 vertices, faces = document.world_triangles()
