@@ -7,8 +7,11 @@
 //! ([`crate::sampling`]): every referenced vertex plus `N` seeded area samples. Each
 //! sample's `d(p, B)` is the exact f64 minimum over `B`'s triangles ([`crate::bvh`]).
 //!
-//! **Two modes.** With `statistics`, every sample's distance is computed in full, which
-//! gives the mean, RMS and percentiles. Without it, only the maximum is wanted: samples
+//! **Exact and max-only searches.** With `statistics`, every area sample's distance is
+//! computed in full, which gives the mean, RMS and percentiles of `d(·, B)` over `A` (area
+//! samples are uniform by area, so these estimate the surface's own statistics; the vertex
+//! samples, dense where the mesh is fine, would bias them and are left out). Samples whose
+//! exact distance nobody needs only have to show they cannot raise the maximum: they
 //! are searched against a shared running maximum `m` (an exact distance of some sample),
 //! and a sample whose search has found a triangle closer than `m` cannot raise the maximum,
 //! so its search stops there (usually after testing one hint triangle). A sample whose
@@ -201,6 +204,17 @@ fn exact_distances(tree: &TriangleTree, points: &[DVec3]) -> (Vec<f64>, Vec<u32>
         (d2[i as usize], slots[i as usize]) = (d, slot);
     }
     (d2, slots)
+}
+
+/// The largest of `d2` as a [`Best`], sample indices offset by `first`.
+fn best_of(d2: &[f64], first: usize) -> Best {
+    d2.par_iter()
+        .enumerate()
+        .map(|(i, &d2)| Best {
+            d2,
+            index: first + i,
+        })
+        .reduce(|| Best::NONE, Best::merge)
 }
 
 /// Max-only pass over `points` (sample indices offset by `first`), searched in
@@ -545,36 +559,36 @@ pub fn directed_from_samples(
     let nv = samples.vertex_count();
     let bounds_wanted =
         opts.bounds || opts.tolerance.is_some() || opts.relative_tolerance.is_some();
-    let full = opts.statistics || opts.return_samples;
-
-    // Exact distances where needed: all samples (full), or the vertices (bounds).
-    let (exact_d2, vertex_slots, mut best) = if full {
-        let (d2, slots) = exact_distances(tree, points);
-        let best = d2
-            .par_iter()
-            .enumerate()
-            .map(|(i, &d2)| Best { d2, index: i })
-            .reduce(|| Best::NONE, Best::merge);
-        (d2, slots, best)
-    } else if bounds_wanted {
-        let (d2, slots) = exact_distances(tree, &points[..nv]);
-        let start = d2.iter().copied().fold(0.0, f64::max);
-        let vbest = d2
-            .iter()
-            .enumerate()
-            .fold(Best::NONE, |b, (i, &d2)| b.merge(Best { d2, index: i }));
-        (
-            d2,
-            slots,
-            vbest.merge(max_only(tree, &points[nv..], nv, start)),
-        )
-    } else {
-        (Vec::new(), Vec::new(), max_only(tree, points, 0, 0.0))
+    // Exact distances where needed: every sample (return_samples); the vertices (bounds);
+    // the area samples (statistics, which describe the surface: area samples only). The
+    // rest only has to show it cannot raise the maximum.
+    let na = points.len() - nv;
+    let vertices_exact = opts.return_samples || bounds_wanted || (opts.statistics && na == 0);
+    let area_exact = opts.return_samples || opts.statistics;
+    let (exact_d2, vertex_slots, mut best) = match (vertices_exact, area_exact) {
+        (true, true) => {
+            let (d2, slots) = exact_distances(tree, points);
+            let best = best_of(&d2, 0);
+            (d2, slots, best)
+        }
+        (true, false) => {
+            let (d2, slots) = exact_distances(tree, &points[..nv]);
+            let vbest = best_of(&d2, 0);
+            let rest = max_only(tree, &points[nv..], nv, vbest.d2.max(0.0));
+            (d2, slots, vbest.merge(rest))
+        }
+        (false, true) => {
+            let (d2, _) = exact_distances(tree, &points[nv..]);
+            let abest = best_of(&d2, nv);
+            let rest = max_only(tree, &points[..nv], 0, abest.d2.max(0.0));
+            (d2, Vec::new(), abest.merge(rest))
+        }
+        (false, false) => (Vec::new(), Vec::new(), max_only(tree, points, 0, 0.0)),
     };
     let mut argmax_point = points[best.index];
 
     // Per-vertex distances (NaN: unreferenced), from the exact vertex samples.
-    let vertex_distances = (!exact_d2.is_empty()).then(|| {
+    let vertex_distances = vertices_exact.then(|| {
         let mut out = vec![f64::NAN; vertices.len()];
         for (k, &v) in samples.vertex_ids.iter().enumerate() {
             out[v as usize] = exact_d2[k].sqrt();
@@ -703,8 +717,14 @@ pub fn directed_from_samples(
         .nearest_local(argmax_point, u32::MAX, 0.0, &mut tree.stack())
         .expect("tree is not empty");
     debug_assert_eq!(hit.d2, best.d2);
-    let statistics = (opts.statistics && full).then(|| {
-        let d: Vec<f64> = exact_d2.par_iter().map(|d2| d2.sqrt()).collect();
+    let statistics = opts.statistics.then(|| {
+        // The area samples' distances (the vertices' when there are none).
+        let area = match (vertices_exact, na) {
+            (true, 0) => &exact_d2[..],
+            (true, _) => &exact_d2[nv..],
+            (false, _) => &exact_d2[..],
+        };
+        let d: Vec<f64> = area.par_iter().map(|d2| d2.sqrt()).collect();
         statistics(&d)
     });
     let sample_data = opts.return_samples.then(|| SampleData {
@@ -1017,5 +1037,60 @@ mod tests {
         assert_eq!(full.argmax, fast.argmax);
         assert_eq!(full.argmax_closest, fast.argmax_closest);
         assert!(fast.statistics.is_none());
+    }
+
+    /// The statistics describe the area samples; the vertices, searched max-only, still
+    /// give the maximum when it lies at one of them (here a spike vertex).
+    #[test]
+    fn statistics_are_the_area_samples_and_a_vertex_can_hold_the_maximum() {
+        let (mut va, fa) = square(9, 0.0);
+        va[37][2] = 0.3;
+        let (mut vb, fb) = square(5, 0.0);
+        for (i, p) in vb.iter_mut().enumerate() {
+            p[2] = 0.05 * ((i * 7919) % 13) as f64 / 13.0;
+        }
+        let tree = TriangleTree::build(&vb, &fb).unwrap();
+        let stats_only = Options {
+            bounds: false,
+            ..options()
+        };
+        let with_samples = Options {
+            return_samples: true,
+            ..stats_only
+        };
+        let fast = directed(&va, &fa, &tree, &stats_only).unwrap();
+        let all = directed(&va, &fa, &tree, &with_samples).unwrap();
+        let data = all.samples.as_ref().unwrap();
+        let nv = all.n_vertex_samples;
+        assert_eq!(nv, va.len());
+        let brute: Vec<f64> = data
+            .points
+            .iter()
+            .map(|&p| {
+                let q = DVec3::from(p) - tree.centre();
+                fb.iter()
+                    .map(|f| {
+                        let [a, b, c] = f.map(|i| DVec3::from(vb[i as usize]) - tree.centre());
+                        crate::closest::closest_point_on_triangle(q, a, b, c).1
+                    })
+                    .fold(f64::INFINITY, f64::min)
+                    .sqrt()
+            })
+            .collect();
+        let argmax = (0..brute.len()).fold(0, |b, i| if brute[i] > brute[b] { i } else { b });
+        assert!(argmax < nv, "the spike vertex holds the maximum");
+        assert_eq!(fast.max, all.max);
+        assert_eq!(fast.argmax, data.points[argmax]);
+        assert!((fast.max - brute[argmax]).abs() < 1e-12);
+        let area: Vec<f64> = data.distances[nv..].to_vec();
+        assert_eq!(fast.statistics, Some(statistics(&area)));
+        let mean = area.iter().sum::<f64>() / area.len() as f64;
+        let got = fast.statistics.unwrap();
+        assert!((got.mean - mean).abs() < 1e-12);
+        let with_vertices = data.distances.iter().sum::<f64>() / data.distances.len() as f64;
+        assert!(
+            (got.mean - with_vertices).abs() > 1e-6,
+            "the vertices are left out"
+        );
     }
 }

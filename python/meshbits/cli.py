@@ -1278,9 +1278,12 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
         rows.append((f"{label} max", d.max))
         if d.mean is not None:
             rows += [
-                (f"{label} mean", d.mean),
-                (f"{label} rms", d.rms),
-                (f"{label} p50 / p95 / p99", f"{d.p50:.6g} / {d.p95:.6g} / {d.p99:.6g}"),
+                (f"{label} mean (area samples)", d.mean),
+                (f"{label} rms (area samples)", d.rms),
+                (
+                    f"{label} p50 / p95 / p99 (area samples)",
+                    f"{d.p50:.6g} / {d.p95:.6g} / {d.p99:.6g}",
+                ),
             ]
         if d.upper is not None:
             rows.append((f"{label} upper", d.upper))

@@ -267,7 +267,9 @@ class DirectedHausdorff(ArrayResult):
         How many of them are vertices.
     mean, rms, p50, p95, p99 : float or None
         Mean, root mean square and 50th / 95th / 99th percentiles (linear interpolation,
-        as numpy's default) of the sample distances; ``None`` with ``statistics=False``.
+        as numpy's default) of the area samples' distances (uniform by area: estimates of
+        the surface's own statistics; the vertex samples count for ``max`` only; a mesh
+        sampled with ``samples=0`` gets its vertices'); ``None`` with ``statistics=False``.
     upper : float or None
         Certified upper bound on the true ``h`` (``bounds=True`` or a tolerance).
     refined_points : int
@@ -340,7 +342,7 @@ class Hausdorff:
     seed : int
         The seed of both sample sets.
     statistics : bool
-        Whether every sample's distance was computed (mean, RMS, percentiles).
+        Whether every area sample's distance was computed (mean, RMS, percentiles).
     tolerance : float or None
         The requested ``upper - distance`` (length).
     relative_tolerance : float or None
@@ -436,8 +438,8 @@ def hausdorff(
         Seed of both sample sets, in ``[0, 2**64)``. The same seed gives bit-identical
         results on any number of threads.
     statistics
-        ``True``: compute every sample's distance in full, for the mean, RMS and
-        percentiles. ``False``: the maximum only, which is several times faster: a
+        ``True``: compute every area sample's distance in full, for the mean, RMS and
+        percentiles over the surface. ``False``: the maximum only, which is faster: a
         sample's search stops as soon as it finds a triangle closer than the largest
         distance found so far, since it can no longer raise the maximum. ``max``,
         ``argmax`` and ``upper`` are identical either way.
