@@ -365,6 +365,32 @@ def test_a_fixed_width_plan_of_a_soup_counts_its_welded_vertices(tmp_path, capsy
         line = capsys.readouterr().out.strip().splitlines()[-1]
         planned.append(int(re.search(r"keep about (\d+) vertices", line).group(1)))
     assert abs(planned[1] / planned[0] - 1) < 0.03, planned
+    assert main(["plan", str(path), "--size", "4KB", "--format", "ply", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["size_unit"] == "bits" and out["file_size_bytes"] == out["file_size"] / 8
+
+
+def test_an_stl_is_counted_once_welded_in_every_text_report(tmp_path, capsys):
+    """compress and plan printed an STL's per-corner vertex count alone (208,353 for a
+    bunny of 34,834 vertices); k already added the welded count."""
+    import numpy as np
+    import trimesh
+
+    mesh = trimesh.load(DATA / "bunny_res4.ply", process=False)
+    corners = np.asarray(mesh.vertices)[np.asarray(mesh.faces)].reshape(-1, 3)
+    soup = trimesh.Trimesh(corners, np.arange(len(corners)).reshape(-1, 3), process=False)
+    path = tmp_path / "soup.stl"
+    soup.export(path)
+    expected = f"{len(corners)} vertices ({len(mesh.vertices)} once welded)"
+    for argv in (
+        ["k", str(path)],
+        ["plan", str(path), "--error", "0.01", "--relative"],
+        ["plan", str(path), "--error", "0.01", "--relative", "--format", "ply"],
+        ["compress", str(path), "--error", "0.01", "--relative", "-o", str(tmp_path / "o.drc")],
+    ):
+        assert main(argv) == 0
+        first = capsys.readouterr().out.splitlines()[0]
+        assert expected in first, (argv, first)
 
 
 @pytest.mark.parametrize("command", [["k"], ["info"], ["compress", "--error", "0.01"]])

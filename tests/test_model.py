@@ -811,11 +811,15 @@ def test_cli_plan_json(capsys):
         "mesh_faces": out["mesh_faces"],
         "estimator": "circumsphere",
         **expected.to_dict(),
+        "size_unit": "bits",
+        "file_size_bytes": expected.file_size / 8,
+        "whole_file_size_bytes": expected.whole_file_size / 8,
+        "budget_unit": "bits",
     }
     assert out["mesh_vertices"] > 0 and out["k"] == ref.k
 
     rel = _json(capsys, ["plan", MESH, "--error", "0.002", "--relative"])
-    assert rel["constraint"] == "error"
+    assert rel["constraint"] == "error" and rel["budget_unit"] == "mesh units"
     assert rel["budget"] == pytest.approx(0.002 * ref.grid_size)
     assert rel["error"] == pytest.approx(0.002 * ref.grid_size, rel=1e-9)
     absolute = _json(capsys, ["plan", MESH, "--error", str(0.002 * ref.grid_size)])
@@ -837,6 +841,7 @@ def test_cli_plan_json(capsys):
         ],
     )
     assert ver["constraint"] == "vertices" and ver["b0"] == 1.838
+    assert ver["budget_unit"] == "vertices"
     assert ver["estimator"] == "hybrid"
 
 

@@ -212,19 +212,21 @@ def _add_k(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_run_k)
 
 
+def _vertices_text(vertices: int, merged: int | None) -> str:
+    """ "N vertices", with the count once identical positions are welded when that differs
+    (an STL stores every face's corners apart)."""
+    welded = f" ({vertices - merged} once welded)" if merged else ""
+    return f"{vertices} vertices{welded}"
+
+
 def _run_k(args: argparse.Namespace) -> int:
     report = _complexity_report(args.mesh, args)
     if args.json:
         _print_json(report, args.mesh)
         return EXIT_OK
     _print_table(
-        f"{report['mesh']}: {report['vertices']} vertices"
-        + (
-            f" ({report['vertices'] - report['merged_vertices']} once welded)"
-            if report["merged_vertices"]
-            else ""
-        )
-        + f", {report['faces']} faces",
+        f"{report['mesh']}: {_vertices_text(report['vertices'], report['merged_vertices'])}, "
+        f"{report['faces']} faces",
         [
             ("K (grid, /S)", report["k"]),
             ("K (area, /sqrt(A))", report["k_area"]),
@@ -464,7 +466,8 @@ def _run_compress(args: argparse.Namespace) -> int:
     else:
         first = result.plan
         _print_table(
-            f"{args.mesh}: {len(mesh[0])} vertices, {len(mesh[1])} faces; "
+            f"{args.mesh}: {_vertices_text(len(mesh[0]), result.complexity.merged_vertices)}, "
+            f"{len(mesh[1])} faces; "
             f"K = {result.complexity.k:.4g}, S = {result.complexity.grid_size:.6g}",
             [
                 ("budget", f"{_budget_text(args)} ({_budget_in_units(result)})"),
@@ -1031,11 +1034,19 @@ def _run_plan(args: argparse.Namespace) -> int:
                 "mesh_faces": report["faces"],
                 "estimator": report["estimator"],
                 **plan.to_dict(),
+                **_size_units(
+                    plan.file_size,
+                    plan.whole_file_size,
+                    {"size": "bits", "vertices": "vertices"}.get(
+                        plan.constraint, length_unit_of(args.mesh)
+                    ),
+                ),
             },
             args.mesh,
         )
         return EXIT_OK
-    print(f"{report['mesh']}: {report['vertices']} vertices, {report['faces']} faces")
+    counts = _vertices_text(report["vertices"], report.get("merged_vertices"))
+    print(f"{report['mesh']}: {counts}, {report['faces']} faces")
     print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} (mesh units)")
     method = plan.method if plan.b0 is None else f"{plan.method}, B0 = {plan.b0:.4g}"
     print(f"  constraint: {plan.constraint} = {budget_text} (method {method})")
@@ -1093,6 +1104,17 @@ def _run_plan(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _size_units(file_size: float, whole: float | None, budget_unit: str | None) -> dict[str, Any]:
+    """The JSON keys that name the unit of a plan's sizes (bits, the paper's F) and of its
+    budget, with the sizes in bytes too."""
+    units: dict[str, Any] = {"size_unit": "bits", "file_size_bytes": file_size / 8}
+    if whole is not None:
+        units["whole_file_size_bytes"] = whole / 8
+    if budget_unit is not None:
+        units["budget_unit"] = budget_unit
+    return units
+
+
 def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
     """``plan --format glb|ply``: positions stored in fixed-width fields cost the same at
     every ``B`` up to the format's most, so ``B`` is that most and the budget buys ``V``
@@ -1141,6 +1163,7 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
         "bits": bits,
         "vertices": vertices,
         "file_size": size_at(vertices),
+        **_size_units(size_at(vertices), None, None),
         "quantization_error": quantization,
         "tessellation_error": tessellation,
         "error": quantization + tessellation,
@@ -1152,7 +1175,8 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
             {"mesh": report["mesh"], "mesh_vertices": report["vertices"], **plan}, args.mesh
         )
         return EXIT_OK
-    print(f"{report['mesh']}: {report['vertices']} vertices, {report['faces']} faces")
+    counts = _vertices_text(report["vertices"], report.get("merged_vertices"))
+    print(f"{report['mesh']}: {counts}, {report['faces']} faces")
     print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} (mesh units)")
     print(f"  constraint: {plan['constraint']} = {budget_text} ({fmt}: fixed-width positions)")
     _print_table(
