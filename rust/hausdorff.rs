@@ -206,6 +206,53 @@ fn exact_distances(tree: &TriangleTree, points: &[DVec3]) -> (Vec<f64>, Vec<u32>
     (d2, slots)
 }
 
+/// One pass over `points` in [`coherent_order`]: the points from `first_exact` on are
+/// searched exactly (their squared distances are returned, in order), the others max-only
+/// against the running maximum of every exact distance found so far. Returns the best
+/// exact distance of all.
+fn exact_beyond(tree: &TriangleTree, points: &[DVec3], first_exact: usize) -> (Vec<f64>, Best) {
+    let running = AtomicU64::new(0.0_f64.to_bits());
+    let parts: Vec<(Vec<(u32, f64)>, Best)> = coherent_order(points)
+        .par_chunks(SAMPLE_CHUNK)
+        .map(|chunk| {
+            let mut stack = tree.stack();
+            let mut hint = u32::MAX;
+            let mut best = Best::NONE;
+            let mut exact = Vec::with_capacity(chunk.len());
+            for &i in chunk {
+                let full = i as usize >= first_exact;
+                let threshold = if full {
+                    0.0
+                } else {
+                    f64::from_bits(running.load(Ordering::Relaxed))
+                };
+                let Some(hit) = tree.nearest_local(points[i as usize], hint, threshold, &mut stack)
+                else {
+                    continue;
+                };
+                hint = hit.slot;
+                if full {
+                    exact.push((i, hit.d2));
+                }
+                if hit.d2 >= threshold {
+                    best.offer(hit.d2, i as usize);
+                    running.fetch_max(hit.d2.to_bits(), Ordering::Relaxed);
+                }
+            }
+            (exact, best)
+        })
+        .collect();
+    let mut d2 = vec![0.0; points.len() - first_exact];
+    let mut best = Best::NONE;
+    for (exact, part) in parts {
+        for (i, d) in exact {
+            d2[i as usize - first_exact] = d;
+        }
+        best = best.merge(part);
+    }
+    (d2, best)
+}
+
 /// The largest of `d2` as a [`Best`], sample indices offset by `first`.
 fn best_of(d2: &[f64], first: usize) -> Best {
     d2.par_iter()
@@ -578,10 +625,8 @@ pub fn directed_from_samples(
             (d2, slots, vbest.merge(rest))
         }
         (false, true) => {
-            let (d2, _) = exact_distances(tree, &points[nv..]);
-            let abest = best_of(&d2, nv);
-            let rest = max_only(tree, &points[..nv], 0, abest.d2.max(0.0));
-            (d2, Vec::new(), abest.merge(rest))
+            let (d2, best) = exact_beyond(tree, points, nv);
+            (d2, Vec::new(), best)
         }
         (false, false) => (Vec::new(), Vec::new(), max_only(tree, points, 0, 0.0)),
     };
