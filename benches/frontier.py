@@ -216,16 +216,20 @@ class Oracle:
         bounds = cell.setdefault("certified", {})
         key = str(budget)
         if key not in bounds:
-            absolute = budget * self.grid_size
-            h = self._reference_tree().hausdorff(
-                self._decoded(cell),
-                bounds=True,
-                tolerance=CERTIFY_TOLERANCE * absolute,
-                threshold=absolute,
-            )
-            bounds[key] = float(h.upper) / self.grid_size
+            bounds[key] = float(self._certify(cell, budget).upper) / self.grid_size
             self._save()
         return bounds[key]
+
+    def _certify(self, cell: dict, budget: float) -> meshbits.Hausdorff:
+        """The cell measured as compress certifies: refined until the bound decides the
+        budget (/ S) or is within CERTIFY_TOLERANCE of it."""
+        absolute = budget * self.grid_size
+        return self._reference_tree().hausdorff(
+            self._decoded(cell),
+            bounds=True,
+            tolerance=CERTIFY_TOLERANCE * absolute,
+            threshold=absolute,
+        )
 
     def _reference_tree(self) -> meshbits.Reference:
         if self.reference is None:
@@ -300,15 +304,9 @@ class Oracle:
         witnesses = cell.setdefault("refuted", {})
         key = str(budget)
         if key not in witnesses:
-            absolute = budget * self.grid_size
-            h = self._reference_tree().hausdorff(
-                self._decoded(cell),
-                bounds=True,
-                tolerance=CERTIFY_TOLERANCE * absolute,
-                threshold=absolute,
-            )
+            h = self._certify(cell, budget)
             witnesses[key] = None
-            if h.distance > absolute:
+            if h.distance > budget * self.grid_size:
                 # a_to_b: a point of the original, measured to the decoded cell.
                 forward = h.a_to_b.max >= h.b_to_a.max
                 d = h.a_to_b if forward else h.b_to_a
