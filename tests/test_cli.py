@@ -391,6 +391,9 @@ def test_an_stl_is_counted_once_welded_in_every_text_report(tmp_path, capsys):
         assert main(argv) == 0
         first = capsys.readouterr().out.splitlines()[0]
         assert expected in first, (argv, first)
+    assert main(["info", str(path)]) == 0
+    primitive = capsys.readouterr().out.splitlines()[2]
+    assert expected in primitive, primitive
 
 
 @pytest.mark.parametrize("command", [["k"], ["info"], ["compress", "--error", "0.01"]])
@@ -469,3 +472,31 @@ def test_info_on_another_format_says_it_is_read_as_a_gltf_scene(tmp_path, capsys
     text = capsys.readouterr().out
     assert "read as" not in text and "bytes by part" in text
     assert run_json(capsys, "info", str(glb))["converted_to_gltf"] is False
+
+
+def test_plan_takes_an_error_with_a_unit_as_compress_does(capsys):
+    """plan refused --error 1mm ("expected a positive number") where compress took it;
+    both now refuse a unit with --relative (it was read as 0.001 x S)."""
+    mesh = str(DATA / "bunny_res4.ply")
+    assert main(["plan", mesh, "--error", "1mm", "--json"]) == 0
+    captured = capsys.readouterr()
+    out = json.loads(captured.out)
+    assert out["budget"] == pytest.approx(0.001) and out["budget_unit"] == "mesh units"
+    assert "taken as meters" in captured.err
+    for command in (["plan"], ["compress", "-o", "unused.drc"]):
+        argv = [command[0], mesh, "--error", "1mm", "--relative", *command[1:]]
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "has a unit" in err and "--relative" in err, err
+
+
+def test_a_fixed_width_plan_states_its_budget_as_a_number_with_a_unit(capsys):
+    mesh = str(DATA / "bunny_res4.ply")
+    for argv, budget, unit in (
+        (["--size", "4KB"], 32_000.0, "bits"),
+        (["--vertices", "300"], 300.0, "vertices"),
+    ):
+        assert main(["plan", mesh, *argv, "--format", "ply", "--json"]) == 0
+        out = json.loads(capsys.readouterr().out)
+        assert out["budget"] == budget and out["budget_unit"] == unit, out
+        assert out["mesh_faces"] > 0 and out["budget_text"] == argv[1]

@@ -127,6 +127,13 @@ def test_a_binary_stl_whose_count_disagrees_with_its_length_is_refused(tmp_path)
     assert "the binary STL declares 4,294,967,295 triangles" in message
 
 
+def test_a_text_file_named_stl_is_called_not_an_stl(tmp_path):
+    """A README renamed .stl was "a binary STL declaring 1,797,286,003 triangles"."""
+    text = "# A project\n\nSome prose about meshes, not an STL.\n" * 20
+    message = refusal(tmp_path, "m.stl", text.encode())
+    assert "not an STL file" in message and "text" in message
+
+
 def test_glb_lengths_beyond_the_file_are_refused(tmp_path):
     """A header length of 2**32 - 1 loaded as if whole. A BIN chunk length of 2**32 - 1
     made trimesh ask for a 4 GiB read: a MemoryError under the campaign's 4 GiB

@@ -895,7 +895,7 @@ def test_plan_for_a_fixed_width_format_predicts_the_bytes_compress_writes(capsys
         (["--size", "100"], "needs a unit"),
         (["--size", "4bit"], "tetrahedron"),
         (["--error", "2", "--relative"], "below the grid size"),
-        (["--error", "-1"], "must be a positive finite number, got '-1'"),
+        (["--error", "-1"], "length '-1' must be positive and finite"),
         (["--vertices", "2"], "at least 4 vertices"),
         (["--size", "10KB", "--alpha", "2"], "alpha"),
         (["--size", "10KB", "--relative"], "--relative applies to --error only"),

@@ -262,10 +262,26 @@ def _stl(buffer: Any, size: int) -> None:
             f"the file has {_plural(size, 'byte')}: too short for a binary STL (84-byte "
             "header) and not an ASCII STL (no 'solid')"
         )
+    if _looks_like_text(sample):
+        raise MeshFileError(
+            f"the file is text but not an ASCII STL (it does not start with 'solid'), and "
+            f"not a binary STL ({size:,} bytes, where its header would declare "
+            f"{_plural(count, 'triangle')}): not an STL file"
+        )
     raise MeshFileError(
         f"the binary STL declares {_plural(count, 'triangle')} ({84 + 50 * count:,} bytes) "
         f"but the file has {size:,} bytes: truncated or damaged"
     )
+
+
+def _looks_like_text(sample: bytes) -> bool:
+    """Printable ASCII or UTF-8 text with line breaks, no NUL (a binary STL's 80-byte
+    header may be text, but its counts and floats are not)."""
+    if b"\0" in sample:
+        return False
+    # A multi-byte character cut at the sample's end is dropped, not a reason to refuse.
+    text = sample.decode("utf-8", errors="ignore")
+    return bool(text) and all(c.isprintable() or c in "\r\n\t" for c in text)
 
 
 def _glb(buffer: Any, size: int) -> None:

@@ -109,6 +109,12 @@ def _length(text: str) -> float:
 def _check_relative(args: argparse.Namespace) -> None:
     if args.relative and args.error is None:
         raise UserError("--relative applies to --error only")
+    text = getattr(args.error, "text", "")
+    if args.relative and text[-1:].isalpha():
+        raise UserError(
+            f"--error {text} has a unit, and --relative makes it a fraction of S: "
+            "give a plain number with --relative, or drop --relative"
+        )
 
 
 def _note_unit(args: argparse.Namespace, path: Path) -> None:
@@ -538,7 +544,8 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     given = [name for name, used in unused.items() if used]
     if given:
         raise UserError(
-            f"{', '.join(given)} apply to single meshes (.drc and .ply outputs); a scene's "
+            f"{', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to single meshes "
+            "(.drc and .ply outputs); a scene's "
             "primitives are searched with meshoptimizer and their own sample counts" + merged
         )
     _output(args.output)
@@ -822,9 +829,11 @@ def _run_info(args: argparse.Namespace) -> int:
             if prim.get("non_finite_positions"):
                 count = prim["non_finite_positions"]
                 extras += f"; {count} position{'s' if count > 1 else ''} NaN or infinite"
+            distinct = prim.get("distinct_vertices", prim["vertices"])
             print(
                 f"  mesh {mesh['mesh']} {mesh['name'] or ''} primitive {prim['primitive']}: "
-                f"{prim['vertices']} vertices, {prim['faces']} faces; {attributes}{extras}"
+                f"{_vertices_text(prim['vertices'], prim['vertices'] - distinct)}, "
+                f"{prim['faces']} faces; {attributes}{extras}"
             )
     for image in info["images"]:
         size = "x".join(map(str, image["size"])) if image["size"] else "?"
@@ -933,8 +942,9 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
     )
     budget.add_argument(
         "--error",
-        type=_positive_number,
-        help="error budget, in mesh units (or a fraction of S with --relative)",
+        type=_length,
+        help="error budget: a length in the file's units (0.002), or with a unit for files "
+        "in meters, as glTF is (1mm); a fraction of S with --relative",
     )
     budget.add_argument("--vertices", type=_positive_number, help="vertex count V")
     p.add_argument(
@@ -988,6 +998,7 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
 def _run_plan(args: argparse.Namespace) -> int:
     _check_relative(args)
     _check_size_model(args)
+    _note_unit(args, args.mesh)
     report = _complexity_report(args.mesh, args)
     k, grid_size = report["k"], report["grid_size"]
     if k is None or not k > 0:
@@ -1016,7 +1027,9 @@ def _run_plan(args: argparse.Namespace) -> int:
             raise UserError(f"--size {args.size}: {err}") from None
     elif args.error is not None:
         error = args.error * grid_size if args.relative else args.error
-        budget_text = f"{args.error:g}" + (" x S" if args.relative else " (mesh units)")
+        budget_text = f"{args.error:g}" + (
+            " x S" if args.relative else f" ({length_unit_of(args.mesh)})"
+        )
         if error >= grid_size:
             raise UserError(
                 f"--error {args.error:g}{' --relative' if args.relative else ''} is not below "
@@ -1047,7 +1060,8 @@ def _run_plan(args: argparse.Namespace) -> int:
         return EXIT_OK
     counts = _vertices_text(report["vertices"], report.get("merged_vertices"))
     print(f"{report['mesh']}: {counts}, {report['faces']} faces")
-    print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} (mesh units)")
+    unit = length_unit_of(args.mesh)
+    print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} ({unit})")
     method = plan.method if plan.b0 is None else f"{plan.method}, B0 = {plan.b0:.4g}"
     print(f"  constraint: {plan.constraint} = {budget_text} (method {method})")
     header = ("", "B (bits)", "V", "F (bits)", "E_Q", "E_T", "E", "E/S")
@@ -1132,6 +1146,7 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
     quantization = float(model.quantization_error(bits, grid_size))
     if args.size is not None:
         budget_text, budget = args.size, parse_size(args.size)
+        budget_value, budget_unit = budget, "bits"
         if budget < size_at(MODEL_MIN_VERTICES):
             raise UserError(
                 f"--size {args.size} cannot hold a tetrahedron in {fmt}: the smallest is "
@@ -1144,26 +1159,31 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
         vertices = lo
     elif args.error is not None:
         error = args.error * grid_size if args.relative else args.error
-        budget_text = f"{args.error:g}" + (" x S" if args.relative else " (mesh units)")
+        budget_text = f"{args.error:g}" + (
+            " x S" if args.relative else f" ({length_unit_of(args.mesh)})"
+        )
+        budget_value, budget_unit = float(error), length_unit_of(args.mesh)
         if error <= quantization:
             raise UserError(
                 f"--error {args.error:g} is not above {fmt}'s quantization error at {bits} "
-                f"bits, {quantization:.4g} (mesh units)"
+                f"bits, {quantization:.4g} ({length_unit_of(args.mesh)})"
             )
         if error >= grid_size:
             raise UserError(f"--error is not below the grid size S = {grid_size:.6g}")
         vertices = float(model.vertices_for_error(error - quantization, k, grid_size))
     else:
         budget_text, vertices = f"{args.vertices:g}", float(args.vertices)
+        budget_value, budget_unit = float(args.vertices), "vertices"
     tessellation = float(model.tessellation_error(vertices, k, grid_size))
     plan = {
         "format": fmt,
         "constraint": "size" if args.size else "error" if args.error else "vertices",
-        "budget": budget_text,
+        "budget": budget_value,
+        "budget_text": budget_text,
         "bits": bits,
         "vertices": vertices,
         "file_size": size_at(vertices),
-        **_size_units(size_at(vertices), None, None),
+        **_size_units(size_at(vertices), None, budget_unit),
         "quantization_error": quantization,
         "tessellation_error": tessellation,
         "error": quantization + tessellation,
@@ -1172,21 +1192,29 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
     }
     if args.json:
         _print_json(
-            {"mesh": report["mesh"], "mesh_vertices": report["vertices"], **plan}, args.mesh
+            {
+                "mesh": report["mesh"],
+                "mesh_vertices": report["vertices"],
+                "mesh_faces": report["faces"],
+                "estimator": report["estimator"],
+                **plan,
+            },
+            args.mesh,
         )
         return EXIT_OK
     counts = _vertices_text(report["vertices"], report.get("merged_vertices"))
     print(f"{report['mesh']}: {counts}, {report['faces']} faces")
-    print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} (mesh units)")
+    unit = length_unit_of(args.mesh)
+    print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} ({unit})")
     print(f"  constraint: {plan['constraint']} = {budget_text} ({fmt}: fixed-width positions)")
     _print_table(
         f"  {fmt} stores any B up to {bits} in the same bytes: B = {bits}",
         [
             ("V", f"{vertices:.1f}"),
             ("F (bits)", f"{plan['file_size']:.6g}"),
-            ("E_Q (mesh units)", f"{quantization:.4g}"),
-            ("E_T (mesh units)", f"{tessellation:.4g}"),
-            ("E (mesh units)", f"{plan['error']:.4g}"),
+            (f"E_Q ({length_unit_of(args.mesh)})", f"{quantization:.4g}"),
+            (f"E_T ({length_unit_of(args.mesh)})", f"{tessellation:.4g}"),
+            (f"E ({length_unit_of(args.mesh)})", f"{plan['error']:.4g}"),
             ("E/S", f"{plan['error'] / grid_size:.4g}"),
         ],
     )

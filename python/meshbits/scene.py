@@ -1522,9 +1522,17 @@ def scene_info(path: str | Path) -> dict[str, Any]:
         meshes.append({"mesh": m, "name": mesh.get("name"), "primitives": prims})
     for data in _decoded_primitives(document, f"{path}: "):
         finite = np.isfinite(data.positions).all(axis=1)
-        meshes[data.mesh]["primitives"][data.index]["non_finite_positions"] = int(
-            len(finite) - finite.sum()
-        )
+        prim_info = meshes[data.mesh]["primitives"][data.index]
+        prim_info["non_finite_positions"] = int(len(finite) - finite.sum())
+        # Vertices identical in position and every attribute (an STL's corners, stored
+        # once per face) count once here.
+        columns = [data.positions.reshape(len(data.positions), -1)] + [
+            np.asarray(a).reshape(len(data.positions), -1)
+            for a in (data.attributes or {}).values()
+            if len(a) == len(data.positions)
+        ]
+        rows = np.ascontiguousarray(np.hstack([c.astype(np.float64) for c in columns]))
+        prim_info["distinct_vertices"] = int(len(np.unique(rows, axis=0))) if len(rows) else 0
     image_views = {
         im["bufferView"] for im in j.get("images", []) if im.get("bufferView") is not None
     }
