@@ -394,6 +394,13 @@ def test_an_stl_is_counted_once_welded_in_every_text_report(tmp_path, capsys):
     assert main(["info", str(path)]) == 0
     primitive = capsys.readouterr().out.splitlines()[2]
     assert expected in primitive, primitive
+    scene = ["compress", str(path), "--error", "0.01", "--relative", "-o", str(tmp_path / "o.glb")]
+    assert main(scene) == 0
+    row = capsys.readouterr().out.splitlines()[2]
+    assert f"{len(corners)} ({len(mesh.vertices)} welded)" in row, row
+    assert main([*scene, "--json"]) == 0
+    (report,) = json.loads(capsys.readouterr().out)["primitives"]
+    assert report["input_distinct_vertices"] == len(mesh.vertices)
 
 
 @pytest.mark.parametrize("command", [["k"], ["info"], ["compress", "--error", "0.01"]])

@@ -610,7 +610,9 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
             str(p.bits) if p.kept is None else "kept",
             str(p.normal_bits or "-"),
             str(p.uv_bits or "-"),
-            str(p.input_vertices),
+            str(p.input_vertices)
+            if p.input_distinct_vertices in (None, p.input_vertices)
+            else f"{p.input_vertices} ({p.input_distinct_vertices} welded)",
             str(p.vertices),
             str(p.bytes),
             f"{p.world_error:.4g}",

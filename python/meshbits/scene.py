@@ -562,7 +562,9 @@ class PrimitiveReport:
     normal_bits, uv_bits : int or None
         Bits of its normals (octahedral) and of its first UV set.
     input_vertices, vertices, faces : int
-        Vertices in, and vertices and faces of the decoded output. Draco's encoder splits
+        Vertices in, and vertices and faces of the decoded output.
+        ``input_distinct_vertices`` counts the input's vertices once per distinct position
+        and attributes (an STL's corners welded). Draco's encoder splits
         the vertices of non-manifold edges, so an output of every input vertex can have
         more (Suzanne, with one edge of four faces: 507 in, 512 out of Draco at any B).
     bytes : int
@@ -600,9 +602,24 @@ class PrimitiveReport:
     kept: str | None = None
     error_upper: float | None = None
     world_error_upper: float | None = None
+    input_distinct_vertices: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+def distinct_vertices(positions: np.ndarray, attributes: dict[str, Any] | None) -> int:
+    """Vertices distinct in position or in some attribute: an STL's corners, stored once
+    per face, count once (its welded count); a UV seam's copies count apart."""
+    n = len(positions)
+    if n == 0:
+        return 0
+    columns = [np.asarray(positions, dtype=np.float64).reshape(n, -1)] + [
+        np.asarray(a, dtype=np.float64).reshape(n, -1)
+        for a in (attributes or {}).values()
+        if len(a) == n
+    ]
+    return len(np.unique(np.hstack(columns), axis=0))
 
 
 @dataclass(frozen=True)
@@ -931,6 +948,7 @@ def compress_scene(
                 else None,
                 uv_bits=job.bits.uv.get("TEXCOORD_0"),
                 input_vertices=len(job.data.positions),
+                input_distinct_vertices=distinct_vertices(job.data.positions, job.data.attributes),
                 vertices=len(encoding.vertices),
                 faces=len(encoding.faces),
                 bytes=encoding.size_bits // 8,
@@ -954,6 +972,7 @@ def compress_scene(
                 normal_bits=None,
                 uv_bits=None,
                 input_vertices=len(data.positions),
+                input_distinct_vertices=distinct_vertices(data.positions, data.attributes),
                 vertices=len(data.positions),
                 faces=len(data.faces),
                 bytes=0,
@@ -1524,15 +1543,7 @@ def scene_info(path: str | Path) -> dict[str, Any]:
         finite = np.isfinite(data.positions).all(axis=1)
         prim_info = meshes[data.mesh]["primitives"][data.index]
         prim_info["non_finite_positions"] = int(len(finite) - finite.sum())
-        # Vertices identical in position and every attribute (an STL's corners, stored
-        # once per face) count once here.
-        columns = [data.positions.reshape(len(data.positions), -1)] + [
-            np.asarray(a).reshape(len(data.positions), -1)
-            for a in (data.attributes or {}).values()
-            if len(a) == len(data.positions)
-        ]
-        rows = np.ascontiguousarray(np.hstack([c.astype(np.float64) for c in columns]))
-        prim_info["distinct_vertices"] = int(len(np.unique(rows, axis=0))) if len(rows) else 0
+        prim_info["distinct_vertices"] = distinct_vertices(data.positions, data.attributes)
     image_views = {
         im["bufferView"] for im in j.get("images", []) if im.get("bufferView") is not None
     }
