@@ -456,6 +456,11 @@ def test_json_reports_name_the_unit_of_their_lengths(tmp_path, capsys):
         ("hausdorff", str(glb), bunny, "--samples", "1000"),
     ):
         assert run_json(capsys, *argv)["length_unit"] == "m", argv
+    # The text report says the same as the JSON.
+    assert main(["hausdorff", bunny, str(glb), "--samples", "1000"]) == 0
+    assert "lengths in m)" in capsys.readouterr().out.splitlines()[0]
+    assert main(["hausdorff", bunny, bunny, "--samples", "1000"]) == 0
+    assert "lengths in the files' unit)" in capsys.readouterr().out.splitlines()[0]
     out = tmp_path / "out"
     assert main(["batch", str(glb), "-o", str(out), "--error", "0.01", "--relative", "--json"]) == 0
     (row,) = json.loads(capsys.readouterr().out)["rows"]

@@ -1320,9 +1320,9 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
     report = {"a": str(args.a), "b": str(args.b), **result.to_dict()}
     if args.colors is not None:
         report["colors"] = _write_colors(meshes["a"], meshes["b"], args)
+    # A file without units measured against glTF is taken in meters, glTF's unit.
+    gltf = [p for p in (args.a, args.b) if length_unit_of(p) == "m"]
     if args.json:
-        # A file without units measured against glTF is taken in meters, glTF's unit.
-        gltf = [p for p in (args.a, args.b) if length_unit_of(p) == "m"]
         _print_json(report, gltf[0] if gltf else args.a)
         return EXIT_OK
     rows: list[tuple[str, Any]] = [("Hausdorff distance (sampled)", result.distance)]
@@ -1348,7 +1348,8 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
     if args.colors is not None:
         rows.append(("coloured mesh (A by distance to B)", report["colors"]["path"]))
         rows.append(("colour bar", report["colors"]["colorbar_path"]))
-    _print_table(f"{args.a} vs {args.b} (seed {result.seed}; lengths in the files' unit)", rows)
+    unit = "m" if gltf else "the files' unit"
+    _print_table(f"{args.a} vs {args.b} (seed {result.seed}; lengths in {unit})", rows)
     return EXIT_OK
 
 
