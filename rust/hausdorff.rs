@@ -763,13 +763,10 @@ pub fn directed_from_samples(
         .expect("tree is not empty");
     debug_assert_eq!(hit.d2, best.d2);
     let statistics = opts.statistics.then(|| {
-        // The area samples' distances (the vertices' when there are none).
-        let area = match (vertices_exact, na) {
-            (true, 0) => &exact_d2[..],
-            (true, _) => &exact_d2[nv..],
-            (false, _) => &exact_d2[..],
-        };
-        let d: Vec<f64> = area.par_iter().map(|d2| d2.sqrt()).collect();
+        // The area samples' distances (the vertices' when there are none); `exact_d2`
+        // starts at the area samples unless the vertices were measured exactly too.
+        let first = if vertices_exact && na > 0 { nv } else { 0 };
+        let d: Vec<f64> = exact_d2[first..].par_iter().map(|d2| d2.sqrt()).collect();
         statistics(&d)
     });
     let sample_data = opts.return_samples.then(|| SampleData {

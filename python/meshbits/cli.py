@@ -1146,6 +1146,7 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
         return fixed_width_size_bits(fmt, bits, v, v * faces_per_vertex)
 
     quantization = float(model.quantization_error(bits, grid_size))
+    unit = length_unit_of(args.mesh)
     if args.size is not None:
         budget_text, budget = args.size, parse_size(args.size)
         budget_value, budget_unit = budget, "bits"
@@ -1161,14 +1162,12 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
         vertices = lo
     elif args.error is not None:
         error = args.error * grid_size if args.relative else args.error
-        budget_text = f"{args.error:g}" + (
-            " x S" if args.relative else f" ({length_unit_of(args.mesh)})"
-        )
-        budget_value, budget_unit = float(error), length_unit_of(args.mesh)
+        budget_text = f"{args.error:g}" + (" x S" if args.relative else f" ({unit})")
+        budget_value, budget_unit = float(error), unit
         if error <= quantization:
             raise UserError(
                 f"--error {args.error:g} is not above {fmt}'s quantization error at {bits} "
-                f"bits, {quantization:.4g} ({length_unit_of(args.mesh)})"
+                f"bits, {quantization:.4g} ({unit})"
             )
         if error >= grid_size:
             raise UserError(f"--error is not below the grid size S = {grid_size:.6g}")
@@ -1206,7 +1205,6 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
         return EXIT_OK
     counts = _vertices_text(report["vertices"], report.get("merged_vertices"))
     print(f"{report['mesh']}: {counts}, {report['faces']} faces")
-    unit = length_unit_of(args.mesh)
     print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} ({unit})")
     print(f"  constraint: {plan['constraint']} = {budget_text} ({fmt}: fixed-width positions)")
     _print_table(
@@ -1214,9 +1212,9 @@ def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
         [
             ("V", f"{vertices:.1f}"),
             ("F (bits)", f"{plan['file_size']:.6g}"),
-            (f"E_Q ({length_unit_of(args.mesh)})", f"{quantization:.4g}"),
-            (f"E_T ({length_unit_of(args.mesh)})", f"{tessellation:.4g}"),
-            (f"E ({length_unit_of(args.mesh)})", f"{plan['error']:.4g}"),
+            (f"E_Q ({unit})", f"{quantization:.4g}"),
+            (f"E_T ({unit})", f"{tessellation:.4g}"),
+            (f"E ({unit})", f"{plan['error']:.4g}"),
             ("E/S", f"{plan['error'] / grid_size:.4g}"),
         ],
     )
