@@ -199,6 +199,9 @@ def test_a_certification_that_fails_is_said(capsys):
         (i for i, ln in enumerate(lines) if ln.endswith("not met, the search goes on")), None
     )
     assert failed is not None, err
+    # The refinement stopped at a point beyond the budget: no bound is quoted for it
+    # (the new user read "certified <= 0.001267" as one).
+    assert "; a point " in lines[failed] and "certified <=" not in lines[failed], lines[failed]
     # What follows the failure meets the budget certified: a pass or a verdict says so.
     assert any(
         line.endswith("holds") or ("certified <=" in line and not line.endswith("budget"))
@@ -458,6 +461,9 @@ def test_json_reports_name_the_unit_of_their_lengths(tmp_path, capsys):
         assert run_json(capsys, *argv)["length_unit"] == "m", argv
     # The text report says the same as the JSON.
     assert main(["hausdorff", bunny, str(glb), "--samples", "1000"]) == 0
+    header = capsys.readouterr().out.splitlines()[0]
+    assert f"lengths in m; {bunny} names no unit, read as m)" in header, header
+    assert main(["hausdorff", str(glb), str(glb), "--samples", "1000"]) == 0
     assert "lengths in m)" in capsys.readouterr().out.splitlines()[0]
     assert main(["hausdorff", bunny, bunny, "--samples", "1000"]) == 0
     assert "lengths in the files' unit)" in capsys.readouterr().out.splitlines()[0]
@@ -512,3 +518,102 @@ def test_a_fixed_width_plan_states_its_budget_as_a_number_with_a_unit(capsys):
         out = json.loads(capsys.readouterr().out)
         assert out["budget"] == budget and out["budget_unit"] == unit, out
         assert out["mesh_faces"] > 0 and out["budget_text"] == argv[1]
+
+
+BROKEN_GLTF = {
+    # A new user's malformed documents: `info` and `compress` raised KeyError or
+    # IndexError (exit 3), `k` leaked trimesh's UnboundLocalError.
+    "missing_accessors": (
+        {"meshes": [{"primitives": [{"attributes": {"POSITION": 5}}]}]},
+        "meshes[0].primitives[0].attributes.POSITION is 5, past the end of accessors (0)",
+    ),
+    "indices_out_of_range": (
+        {
+            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 7}]}],
+        },
+        "meshes[0].primitives[0].indices is 7, past the end of accessors (1)",
+    ),
+    "node_mesh_out_of_range": (
+        {
+            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "nodes": [{"mesh": 4}],
+            "scenes": [{"nodes": [0]}],
+        },
+        "nodes[0].mesh is 4, past the end of meshes (1)",
+    ),
+    "material_out_of_range": (
+        {
+            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 3}]}],
+        },
+        "meshes[0].primitives[0].material is 3, past the end of materials (0)",
+    ),
+    "texture_source_out_of_range": (
+        {
+            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+            "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+            "images": [{"uri": "nope.png"}],
+            "textures": [{"source": 2}],
+        },
+        "textures[0].source is 2, past the end of images (1)",
+    ),
+    "material_texture_out_of_range": (
+        {
+            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+            "materials": [{"normalTexture": {"index": 1}}],
+        },
+        "materials[0].normalTexture.index is 1, past the end of textures (0)",
+    ),
+    "negative_count": (
+        {
+            "accessors": [{"componentType": 5126, "count": -3, "type": "VEC3"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        },
+        "accessors[0].count is -3, not a count",
+    ),
+    "not_an_object": ([1, 2, 3], "the glTF JSON is not an object"),
+    "meshes_not_an_array": ({"meshes": {"0": {}}}, "meshes is not an array of objects"),
+    "index_not_an_integer": (
+        {
+            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": "0"}}]}],
+        },
+        "meshes[0].primitives[0].attributes.POSITION is '0', not an index into accessors",
+    ),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BROKEN_GLTF))
+@pytest.mark.parametrize("command", ["info", "k", "hausdorff", "compress"])
+def test_a_malformed_gltf_names_its_bad_reference(tmp_path, capsys, name, command):
+    document, message = BROKEN_GLTF[name]
+    if isinstance(document, dict):
+        document = {"asset": {"version": "2.0"}, **document}
+    path = tmp_path / f"{name}.gltf"
+    path.write_text(json.dumps(document))
+    argv = {
+        "info": ["info", str(path)],
+        "k": ["k", str(path)],
+        "hausdorff": ["hausdorff", str(DATA / "bunny_res4.ply"), str(path), "--quiet"],
+        "compress": ["compress", str(path), "--error", "1mm", "-o", str(tmp_path / "o.glb")],
+    }[command]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"cannot read {path}: {message}" in err, err
+
+
+def test_a_gltf_output_names_the_buffer_written_beside_it(tmp_path, capsys):
+    out = tmp_path / "out.gltf"
+    argv = ["compress", str(DATA / "bunny_res4.ply"), "--error", "0.01", "--relative"]
+    assert main([*argv, "-o", str(out), "--quiet"]) == 0
+    line = capsys.readouterr().out.splitlines()[0]
+    assert f"-> {out} and out.bin (draco)" in line, line
+    assert (tmp_path / "out.bin").is_file()
+    # The table's lengths are metres, as the JSON's length_unit says.
+    assert main([*argv, "-o", str(tmp_path / "o.glb"), "--quiet"]) == 0
+    table = capsys.readouterr().out
+    assert "error (m)" in table and "bound (m)" in table

@@ -705,3 +705,26 @@ def test_a_threshold_decides_the_certified_bound():
     assert decided.distance <= tight.upper
     with pytest.raises(meshbits.MeshbitsError, match="threshold"):
         reference.hausdorff(clustered, tolerance=1e-6, threshold=float("nan"))
+
+
+def test_once_the_reference_side_exceeds_a_threshold_the_other_is_not_refined():
+    """The answer is no as soon as a point of the reference lies beyond the threshold:
+    the candidate's side keeps its unrefined bound (refining it to decide took seconds
+    on the dragon's answers), and the verdict is the same as with both sides refined."""
+    bunny = load("bunny.ply")
+    # The clustered copy as the reference: its side (9.7e-4) is the larger one.
+    reference = meshbits.Reference(meshbits.cluster(bunny, bits=7), samples=20_000)
+    tight = reference.hausdorff(bunny, samples=20_000, tolerance=1e-6)
+    assert tight.a_to_b.max > tight.b_to_a.upper
+    between = 0.5 * (tight.a_to_b.max + tight.b_to_a.max)
+    kept = reference.hausdorff(bunny, samples=20_000, bounds=True)
+    assert kept.b_to_a.upper > between  # deciding that side would need refinement
+    decided = reference.hausdorff(bunny, samples=20_000, tolerance=1e-6, threshold=between)
+    assert decided.a_to_b.max > between and decided.upper > between
+    assert decided.b_to_a.refined_points == 0 and decided.b_to_a.converged is False
+    assert decided.b_to_a.upper == pytest.approx(kept.b_to_a.upper)
+    # Beyond the reference side's maximum, the candidate side is refined as before.
+    decided = reference.hausdorff(
+        bunny, samples=20_000, tolerance=1e-6, threshold=1.05 * tight.upper
+    )
+    assert decided.b_to_a.converged and decided.b_to_a.refined_points > 0

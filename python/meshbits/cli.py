@@ -580,6 +580,8 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         _print_json(payload, args.mesh)
         return EXIT_OK if result.met else EXIT_UNMET
     target = "(not written: use -o x.glb)" if args.output is None else str(args.output)
+    if args.output is not None and args.output.suffix.lower() == ".gltf":
+        target += f" and {args.output.with_suffix('.bin').name}"
     print(
         f"{args.mesh} -> {target} ({result.codec}): {result.input_bytes} -> "
         f"{result.size_bytes} bytes; budget {_budget_text(args)}"
@@ -596,8 +598,8 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         "V in",
         "V out",
         "bytes",
-        "error (world)",
-        "bound (world)",
+        "error (m)",
+        "bound (m)",
         "met",
     )
     rows = [
@@ -1346,7 +1348,10 @@ def _run_hausdorff(args: argparse.Namespace) -> int:
     if args.colors is not None:
         rows.append(("coloured mesh (A by distance to B)", report["colors"]["path"]))
         rows.append(("colour bar", report["colors"]["colorbar_path"]))
-    unit = "m" if gltf else "the files' unit"
+    unit = "the files' unit"
+    if gltf:
+        unitless = [str(p) for p in (args.a, args.b) if p not in gltf]
+        unit = "m" + (f"; {', '.join(unitless)} names no unit, read as m" if unitless else "")
     _print_table(f"{args.a} vs {args.b} (seed {result.seed}; lengths in {unit})", rows)
     return EXIT_OK
 

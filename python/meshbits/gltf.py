@@ -622,8 +622,11 @@ def load_document(path: str | Path) -> Document:
     except (MeshbitsError, FileNotFoundError):
         raise
     except Exception as err:
-        reason = " ".join(str(err).split()) or type(err).__name__
-        raise MeshFileError(f"cannot read {path} as a scene: {reason}") from err
+        from ._filecheck import explain
+
+        suffixes = [x.lower() for x in path.suffixes]
+        kind = suffixes[-2] if suffix == ".gz" and len(suffixes) > 1 else suffix
+        raise MeshFileError(f"cannot read {path}: {explain(kind.lstrip('.'), err)}") from err
 
 
 def _glb_json(head: bytes) -> Any:
@@ -700,6 +703,10 @@ def load_compressed_document(
             document = json.loads(head.decode("utf-8"))
     except (ValueError, UnicodeDecodeError):
         return None  # not this reader's to explain: the file's own reader does
+    try:
+        check_references(document)
+    except MeshFileError as err:
+        raise MeshFileError(f"cannot read {path}: {err}") from None
     if not (uses_meshopt(document) or uses_draco(document)):
         return None
     if data is None:
@@ -710,6 +717,165 @@ def load_compressed_document(
         return _from_gltf(document, path.parent)
     except MeshFileError as err:
         raise MeshFileError(f"cannot read {path}: {err}") from None
+
+
+#: Top-level glTF collections (arrays of objects) that other objects refer to by index.
+COLLECTIONS = (
+    "accessors",
+    "animations",
+    "bufferViews",
+    "buffers",
+    "cameras",
+    "images",
+    "materials",
+    "meshes",
+    "nodes",
+    "samplers",
+    "scenes",
+    "skins",
+    "textures",
+)
+
+
+def check_references(document: Any) -> None:
+    """Refuse a glTF document whose structure a reader would trip on: not a JSON object,
+    a top-level collection that is not an array of objects, or an index (glTF 2.0 Sec.
+    3.7.2 and 5: a scene's nodes, a node's mesh, children, skin and camera, a
+    primitive's attributes, indices, material and morph targets, an accessor's and an
+    image's bufferView, a sparse accessor's views, a bufferView's buffer, a texture's
+    source and sampler and its extensions' sources, a material's textures, a skin's
+    joints, skeleton and matrices, an animation's samplers, targets and accessors, the
+    Draco and meshopt extensions' views and buffers) that is not an integer naming an
+    existing item. Raises :class:`MeshFileError` naming the reference, e.g.
+    ``meshes[0].primitives[0].material is 3, past the end of materials (0)``."""
+    if not isinstance(document, dict):
+        raise MeshFileError("the glTF JSON is not an object")
+    sizes: dict[str, int] = {}
+    for kind in COLLECTIONS:
+        items = document.get(kind, [])
+        if not isinstance(items, list) or not all(isinstance(i, dict) for i in items):
+            raise MeshFileError(f"{kind} is not an array of objects")
+        sizes[kind] = len(items)
+
+    def ref(value: Any, kind: str, where: str) -> None:
+        if value is None:
+            return
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise MeshFileError(f"{where} is {value!r}, not an index into {kind}")
+        if not 0 <= value < sizes[kind]:
+            raise MeshFileError(f"{where} is {value}, past the end of {kind} ({sizes[kind]})")
+
+    def obj(value: Any, where: str) -> dict[str, Any]:
+        if value is None:
+            return {}
+        if not isinstance(value, dict):
+            raise MeshFileError(f"{where} is not an object")
+        return value
+
+    def array(value: Any, where: str) -> list[Any]:
+        if value is None:
+            return []
+        if not isinstance(value, list):
+            raise MeshFileError(f"{where} is not an array")
+        return value
+
+    ref(document.get("scene"), "scenes", "scene")
+    for i, scene in enumerate(document.get("scenes", [])):
+        for k, node in enumerate(array(scene.get("nodes"), f"scenes[{i}].nodes")):
+            ref(node, "nodes", f"scenes[{i}].nodes[{k}]")
+    for i, node in enumerate(document.get("nodes", [])):
+        where = f"nodes[{i}]"
+        for key, kind in (("mesh", "meshes"), ("skin", "skins"), ("camera", "cameras")):
+            ref(node.get(key), kind, f"{where}.{key}")
+        for k, child in enumerate(array(node.get("children"), f"{where}.children")):
+            ref(child, "nodes", f"{where}.children[{k}]")
+    for m, mesh in enumerate(document.get("meshes", [])):
+        for p, prim in enumerate(array(mesh.get("primitives"), f"meshes[{m}].primitives")):
+            where = f"meshes[{m}].primitives[{p}]"
+            prim = obj(prim, where)
+            for name, index in obj(prim.get("attributes"), f"{where}.attributes").items():
+                ref(index, "accessors", f"{where}.attributes.{name}")
+            ref(prim.get("indices"), "accessors", f"{where}.indices")
+            ref(prim.get("material"), "materials", f"{where}.material")
+            for t, target in enumerate(array(prim.get("targets"), f"{where}.targets")):
+                for name, index in obj(target, f"{where}.targets[{t}]").items():
+                    ref(index, "accessors", f"{where}.targets[{t}].{name}")
+            extensions = obj(prim.get("extensions"), f"{where}.extensions")
+            draco = obj(extensions.get(DRACO), f"{where}.extensions.{DRACO}")
+            ref(draco.get("bufferView"), "bufferViews", f"{where}.extensions.{DRACO}.bufferView")
+    for i, accessor in enumerate(document.get("accessors", [])):
+        count = accessor.get("count")
+        if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+            raise MeshFileError(f"accessors[{i}].count is {count!r}, not a count")
+        if accessor.get("componentType") not in COMPONENT_DTYPES:
+            raise MeshFileError(
+                f"accessors[{i}].componentType is {accessor.get('componentType')!r}, not a "
+                f"glTF component type"
+            )
+        if accessor.get("type") not in TYPE_WIDTHS:
+            raise MeshFileError(f"accessors[{i}].type is {accessor.get('type')!r}, not a glTF type")
+        ref(accessor.get("bufferView"), "bufferViews", f"accessors[{i}].bufferView")
+        sparse = obj(accessor.get("sparse"), f"accessors[{i}].sparse")
+        for part in ("indices", "values"):
+            inner = obj(sparse.get(part), f"accessors[{i}].sparse.{part}")
+            ref(inner.get("bufferView"), "bufferViews", f"accessors[{i}].sparse.{part}.bufferView")
+    for i, view in enumerate(document.get("bufferViews", [])):
+        ref(view.get("buffer"), "buffers", f"bufferViews[{i}].buffer")
+        extensions = obj(view.get("extensions"), f"bufferViews[{i}].extensions")
+        for name in MESHOPT_EXTENSIONS:
+            inner = obj(extensions.get(name), f"bufferViews[{i}].extensions.{name}")
+            ref(inner.get("buffer"), "buffers", f"bufferViews[{i}].extensions.{name}.buffer")
+    for i, image in enumerate(document.get("images", [])):
+        ref(image.get("bufferView"), "bufferViews", f"images[{i}].bufferView")
+    for i, texture in enumerate(document.get("textures", [])):
+        ref(texture.get("source"), "images", f"textures[{i}].source")
+        ref(texture.get("sampler"), "samplers", f"textures[{i}].sampler")
+        extensions = obj(texture.get("extensions"), f"textures[{i}].extensions")
+        for name, inner in extensions.items():
+            if isinstance(inner, dict):
+                ref(inner.get("source"), "images", f"textures[{i}].extensions.{name}.source")
+
+    def texture_infos(value: Any, where: str) -> None:
+        if isinstance(value, dict):
+            for key, inner in value.items():
+                here = f"{where}.{key}"
+                if key.endswith(("Texture", "texture")) and isinstance(inner, dict):
+                    ref(inner.get("index"), "textures", f"{here}.index")
+                texture_infos(inner, here)
+        elif isinstance(value, list):
+            for k, inner in enumerate(value):
+                texture_infos(inner, f"{where}[{k}]")
+
+    for i, material in enumerate(document.get("materials", [])):
+        texture_infos(material, f"materials[{i}]")
+    for i, skin in enumerate(document.get("skins", [])):
+        for k, joint in enumerate(array(skin.get("joints"), f"skins[{i}].joints")):
+            ref(joint, "nodes", f"skins[{i}].joints[{k}]")
+        ref(skin.get("skeleton"), "nodes", f"skins[{i}].skeleton")
+        ref(skin.get("inverseBindMatrices"), "accessors", f"skins[{i}].inverseBindMatrices")
+    for a, animation in enumerate(document.get("animations", [])):
+        samplers = array(animation.get("samplers"), f"animations[{a}].samplers")
+        for k, sampler in enumerate(samplers):
+            sampler = obj(sampler, f"animations[{a}].samplers[{k}]")
+            for key in ("input", "output"):
+                ref(sampler.get(key), "accessors", f"animations[{a}].samplers[{k}].{key}")
+        for k, channel in enumerate(array(animation.get("channels"), f"animations[{a}].channels")):
+            where = f"animations[{a}].channels[{k}]"
+            channel = obj(channel, where)
+            index = channel.get("sampler")
+            if (
+                isinstance(index, bool)
+                or not isinstance(index, int)
+                or not 0 <= index < len(samplers)
+            ):
+                raise MeshFileError(
+                    f"{where}.sampler is {index!r}, but the animation has {len(samplers)} samplers"
+                )
+            ref(
+                obj(channel.get("target"), f"{where}.target").get("node"),
+                "nodes",
+                f"{where}.target.node",
+            )
 
 
 def _from_glb(data: bytes, base: Path | None) -> Document:
@@ -742,8 +908,7 @@ def _from_glb(data: bytes, base: Path | None) -> Document:
 
 
 def _from_gltf(document: dict[str, Any], base: Path | None, binary: bytes = b"") -> Document:
-    if not isinstance(document, dict):
-        raise MeshFileError("the glTF JSON is not an object")
+    check_references(document)
     buffers = []
     for i, buffer in enumerate(document.get("buffers", [])):
         uri = buffer.get("uri")

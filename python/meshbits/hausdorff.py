@@ -641,6 +641,8 @@ class Reference:
         (instead of ``max + tolerance``) and stops once the maximum found exceeds it, so
         ``upper`` may be anywhere up to ``threshold`` (``converged`` is then true when
         the bounds decided the question, false when ``refine_budget`` ran out first).
+        Once the direction from the reference exceeds ``threshold``, the other direction
+        is not refined (its ``upper`` is its unrefined bound, ``converged`` false).
         ``relative_tolerance``, instead of ``tolerance``, as :func:`hausdorff`'s."""
         count = self.samples if samples is None else _check_count(samples, "samples")
         refine_budget = _check_count(refine_budget, "refine_budget")
@@ -656,6 +658,10 @@ class Reference:
         # What both directions are asked, after their source and target.
         asked = (statistics, bounds, tolerance, refine_budget, False, threshold, relative_tolerance)
         a_to_b = _core.hausdorff_from_samples(self._sampled, tree, *asked)
+        if threshold is not None and a_to_b["max"] > threshold:
+            # The answer is already no: the other direction keeps its unrefined bound
+            # (refining it to decide would take seconds on a large candidate).
+            asked = (statistics, bounds, tolerance, 0, False, threshold, relative_tolerance)
         b_to_a = _core.hausdorff_directed(vertices, faces, self._tree, count, self.seed, *asked)
         return _symmetric(
             _directed(a_to_b),

@@ -889,7 +889,7 @@ def compress_scene(
                 f"mesh {job.data.mesh} primitive {job.data.index} within {world_error:.4g}: "
                 f"B = {outcome[0].bits}, V = {len(outcome[1].vertices)}, "
                 f"{outcome[1].size_bits // 8} bytes, error "
-                f"{outcome[0].measured_error * job.scale:.4g} (world units)"
+                f"{outcome[0].measured_error * job.scale:.4g} (m)"
             )
         return outcomes
 

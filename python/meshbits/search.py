@@ -946,7 +946,21 @@ class Search:
         """What error candidates are aimed at (length): see :data:`AIM`."""
         return (EXPLORE_AIM if self.best() is not None else AIM) * self.budget
 
-    def _error_bits(self) -> range:
+    def _stored_bits(self, bits: int) -> int:
+        """The most bits stored in the same bytes as ``bits``: a fixed-width format keeps
+        each coordinate in whole bytes (float32 in PLY; 8 or 16 bits in a quantized GLB),
+        so at the same size those give the least error. ``bits`` itself for Draco and a
+        caller's codec."""
+        if self.codec is None and self.format == "ply":
+            return self.max_bits
+        if self.codec is None and self.format == "glb":
+            return min(8 if bits <= 8 else 16, self.max_bits)
+        return bits
+
+    def _planning_bits(self) -> range:
+        """The B whose quantization error leaves the room an error budget's levels are
+        planned for: the least B whose quantization alone fits, and
+        :data:`BITS_ABOVE` more."""
         aim = self._aim()
         first = next(
             (b for b in range(1, self.max_bits + 1) if quantization_error(b, self.grid_size) < aim),
@@ -957,13 +971,18 @@ class Search:
         above = BITS_ABOVE if len(self.original[1]) <= BASE_FACES else 1
         return range(first, min(first + above, self.max_bits) + 1)
 
+    def _error_bits(self) -> list[int]:
+        """The B an error budget's candidates are encoded at: :meth:`_planning_bits`,
+        each raised to the most bits stored in the same bytes (:meth:`_stored_bits`)."""
+        return sorted({self._stored_bits(b) for b in self._planning_bits()})
+
     def _error_candidates(self) -> list[_Candidate]:
         """Candidates expected to meet the error budget: for each B, a level whose
         tessellation error fills the room quantization leaves; and every level built so
         far, at each B where it is expected to meet the budget."""
         aim = self._aim()
         bits_range = self._error_bits()
-        for bits in bits_range:
+        for bits in self._planning_bits():
             room = allowed_tessellation(aim, quantization_error(bits, self.grid_size), self.delta())
             for method in self.simplifier_methods():
                 self._level_for(room, room, method)
@@ -1022,11 +1041,15 @@ class Search:
     def _size_candidates(self) -> list[_Candidate]:
         """For each B near the optimum, the finest level whose encoding fits the size;
         the original at the most bits that fit; and every encoding built so far that
-        fits."""
+        fits, with each level at the most bits stored in the same bytes
+        (:meth:`_stored_bits`) where that fits too."""
         for bits in self._size_bits():
             for method in self.simplifier_methods():
                 self._fitting_level(bits, method)
         self._original_most_bits()
+        for index, level in enumerate(self.levels):
+            for bits in [b for b, e in level.encodings.items() if e.size_bits <= self.budget]:
+                self._encoded(index, self._stored_bits(bits))
         out = []
         for index, level in enumerate(self.levels):
             for bits, encoded in level.encodings.items():
@@ -1420,11 +1443,16 @@ def certify_answer(
                 verdict = "holds" if checked.met else "misses the budget: not met"
                 if not checked.met and more:
                     verdict += ", the search goes on"
+                if checked.measured_error > search.budget:
+                    # The refinement stopped at a point beyond the budget: its bound then
+                    # is whatever it had reached, not a measure of the error.
+                    found = f"a point {checked.measured_error:.4g} away"
+                else:
+                    found = f"error {checked.measured_error:.4g}, certified <= {upper:.4g}"
                 progress(
                     Progress(
                         "compress",
-                        f"certify: B = {best.bits}, V = {best.vertices}; error "
-                        f"{checked.measured_error:.4g}, certified <= {upper:.4g} "
+                        f"certify: B = {best.bits}, V = {best.vertices}; {found} "
                         f"(budget {search.budget:.4g}) (mesh units): {verdict}",
                         checked,
                     )
