@@ -13,9 +13,8 @@ from conftest import load
 
 import meshbits
 from meshbits.cli import main
-from meshbits.encode import encode
 from meshbits.compress import compress
-from meshbits.encode import decode_draco, encode_draco
+from meshbits.encode import decode_draco, encode, encode_draco
 from meshbits.hausdorff import default_samples
 from meshbits.simplify import simplify
 
