@@ -520,6 +520,9 @@ def test_a_fixed_width_plan_states_its_budget_as_a_number_with_a_unit(capsys):
         assert out["mesh_faces"] > 0 and out["budget_text"] == argv[1]
 
 
+ONE_ACCESSOR = [{"componentType": 5126, "count": 3, "type": "VEC3"}]
+PRIMITIVE = {"attributes": {"POSITION": 0}}
+
 BROKEN_GLTF = {
     # A new user's malformed documents: `info` and `compress` raised KeyError or
     # IndexError (exit 3), `k` leaked trimesh's UnboundLocalError.
@@ -529,15 +532,15 @@ BROKEN_GLTF = {
     ),
     "indices_out_of_range": (
         {
-            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 7}]}],
+            "accessors": ONE_ACCESSOR,
+            "meshes": [{"primitives": [{**PRIMITIVE, "indices": 7}]}],
         },
         "meshes[0].primitives[0].indices is 7, past the end of accessors (1)",
     ),
     "node_mesh_out_of_range": (
         {
-            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "accessors": ONE_ACCESSOR,
+            "meshes": [{"primitives": [PRIMITIVE]}],
             "nodes": [{"mesh": 4}],
             "scenes": [{"nodes": [0]}],
         },
@@ -545,15 +548,15 @@ BROKEN_GLTF = {
     ),
     "material_out_of_range": (
         {
-            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 3}]}],
+            "accessors": ONE_ACCESSOR,
+            "meshes": [{"primitives": [{**PRIMITIVE, "material": 3}]}],
         },
         "meshes[0].primitives[0].material is 3, past the end of materials (0)",
     ),
     "texture_source_out_of_range": (
         {
-            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+            "accessors": ONE_ACCESSOR,
+            "meshes": [{"primitives": [{**PRIMITIVE, "material": 0}]}],
             "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
             "images": [{"uri": "nope.png"}],
             "textures": [{"source": 2}],
@@ -562,8 +565,8 @@ BROKEN_GLTF = {
     ),
     "material_texture_out_of_range": (
         {
-            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+            "accessors": ONE_ACCESSOR,
+            "meshes": [{"primitives": [{**PRIMITIVE, "material": 0}]}],
             "materials": [{"normalTexture": {"index": 1}}],
         },
         "materials[0].normalTexture.index is 1, past the end of textures (0)",
@@ -571,7 +574,7 @@ BROKEN_GLTF = {
     "negative_count": (
         {
             "accessors": [{"componentType": 5126, "count": -3, "type": "VEC3"}],
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "meshes": [{"primitives": [PRIMITIVE]}],
         },
         "accessors[0].count is -3, not a count",
     ),
@@ -579,7 +582,7 @@ BROKEN_GLTF = {
     "meshes_not_an_array": ({"meshes": {"0": {}}}, "meshes is not an array of objects"),
     "index_not_an_integer": (
         {
-            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+            "accessors": ONE_ACCESSOR,
             "meshes": [{"primitives": [{"attributes": {"POSITION": "0"}}]}],
         },
         "meshes[0].primitives[0].attributes.POSITION is '0', not an index into accessors",
