@@ -16,6 +16,8 @@ import zlib
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import meshbits
 from meshbits import io as meshbits_io
@@ -251,3 +253,186 @@ def test_a_draco_file_reads_back_as_draco_decodes_it(tmp_path):
     damaged.write_bytes(data[: len(data) // 3])
     with pytest.raises(MeshFileError, match=r"damaged\.drc"):
         meshbits.load_mesh(damaged)
+
+
+def _rich_gltf() -> dict:
+    """A valid glTF document that uses every kind of reference the specification has: a
+    node tree with a mesh, skin and camera; a primitive with normals, UVs, indices, a
+    material and a morph target; textures with samplers and an embedded image; a sparse
+    accessor; an animation. The buffer is a data URI."""
+    import base64
+    import io as _io
+
+    from PIL import Image
+
+    png = _io.BytesIO()
+    Image.new("RGB", (2, 2), (200, 30, 30)).save(png, format="PNG")
+    parts = [
+        np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], "<f4").tobytes(),  # positions
+        np.array([[0, 0, 1]] * 3, "<f4").tobytes(),  # normals
+        np.array([[0, 0], [1, 0], [0, 1]], "<f4").tobytes(),  # uvs
+        np.array([0, 1, 2, 0], "<u2").tobytes(),  # indices (padded)
+        np.eye(4, dtype="<f4").tobytes(),  # inverse bind matrix
+        np.array([0.0, 1.0], "<f4").tobytes(),  # animation times
+        np.array([[0, 0, 0], [0, 0, 1]], "<f4").tobytes(),  # animation translations
+        np.array([1], "<u2").tobytes() + b"\0\0",  # sparse indices (padded)
+        np.array([[0, 0, 0.5]], "<f4").tobytes(),  # sparse values
+        png.getvalue(),
+    ]
+    views, offset = [], 0
+    for part in parts:
+        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(part)})
+        offset += len(part) + (-len(part) % 4)
+    data = b"".join(p + b"\0" * (-len(p) % 4) for p in parts)
+    views[3]["byteLength"] = 6
+    views[7]["byteLength"] = 2
+    vec3 = {"componentType": 5126, "type": "VEC3"}
+    return {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [
+            {"children": [1], "skin": 0, "camera": 0},
+            {"mesh": 0, "translation": [1, 0, 0]},
+        ],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.1}}],
+        "meshes": [
+            {
+                "primitives": [
+                    {
+                        "attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
+                        "indices": 3,
+                        "material": 0,
+                        "targets": [{"POSITION": 7}],
+                    }
+                ]
+            }
+        ],
+        "accessors": [
+            {**vec3, "bufferView": 0, "count": 3, "min": [0, 0, 0], "max": [1, 1, 0]},
+            {**vec3, "bufferView": 1, "count": 3},
+            {"componentType": 5126, "type": "VEC2", "bufferView": 2, "count": 3},
+            {"componentType": 5123, "type": "SCALAR", "bufferView": 3, "count": 3},
+            {"componentType": 5126, "type": "MAT4", "bufferView": 4, "count": 1},
+            {"componentType": 5126, "type": "SCALAR", "bufferView": 5, "count": 2},
+            {**vec3, "bufferView": 6, "count": 2},
+            {
+                **vec3,
+                "count": 3,
+                "sparse": {
+                    "count": 1,
+                    "indices": {"bufferView": 7, "componentType": 5123},
+                    "values": {"bufferView": 8},
+                },
+            },
+        ],
+        "bufferViews": views,
+        "buffers": [
+            {
+                "byteLength": len(data),
+                "uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode(),
+            }
+        ],
+        "materials": [
+            {
+                "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
+                "normalTexture": {"index": 0},
+            }
+        ],
+        "textures": [{"source": 0, "sampler": 0}],
+        "samplers": [{}],
+        "images": [{"bufferView": 9, "mimeType": "image/png"}],
+        "skins": [{"joints": [1], "inverseBindMatrices": 4, "skeleton": 0}],
+        "animations": [
+            {
+                "samplers": [{"input": 5, "output": 6}],
+                "channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}}],
+            }
+        ],
+    }
+
+
+def _reference_paths(value, path=()):
+    """Every place in a document that holds an index (an int under a key that names one),
+    as a tuple of keys."""
+    names = {
+        "scene", "nodes", "children", "mesh", "skin", "camera", "indices", "material",
+        "bufferView", "buffer", "source", "sampler", "index", "joints", "skeleton",
+        "inverseBindMatrices", "input", "output", "node", "POSITION", "NORMAL", "TEXCOORD_0",
+    }  # fmt: skip
+    if isinstance(value, dict):
+        for key, inner in value.items():
+            if key in names and isinstance(inner, int) and not isinstance(inner, bool):
+                yield (*path, key)
+            yield from _reference_paths(inner, (*path, key))
+    elif isinstance(value, list):
+        for k, inner in enumerate(value):
+            if isinstance(inner, int) and path and path[-1] in names:
+                yield (*path, k)
+            yield from _reference_paths(inner, (*path, k))
+
+
+RICH_GLTF_PATHS = sorted(_reference_paths(_rich_gltf()), key=str)
+
+
+@settings(
+    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    edits=st.lists(
+        st.tuples(
+            st.sampled_from(RICH_GLTF_PATHS),
+            st.one_of(
+                st.integers(-2, 12),
+                st.none(),
+                st.booleans(),
+                st.floats(allow_nan=True),
+                st.text(max_size=2),
+                st.lists(st.integers(0, 3), max_size=2),
+                st.dictionaries(st.text(max_size=1), st.integers(0, 2), max_size=1),
+            ),
+        ),
+        min_size=1,
+        max_size=3,
+    )
+)
+def test_a_gltf_with_any_broken_reference_is_refused_in_words(tmp_path, edits):
+    """Whatever index of a valid document is replaced (out of range, negative, another
+    type), reading it (and compressing it as a scene) gives a result or a MeshbitsError:
+    never a KeyError, IndexError, TypeError or a reader's internal error (what a new
+    user's hand-made files got)."""
+    from meshbits.gltf import load_document
+    from meshbits.scene import scene_info
+
+    document = _rich_gltf()
+    for path, value in edits:
+        parent = document
+        for key in path[:-1]:
+            parent = parent[key]
+        parent[path[-1]] = value
+    file = tmp_path / "broken.gltf"
+    file.write_text(json.dumps(document))
+    def compress(path):
+        return meshbits.compress_scene(path, error=0.01, output=tmp_path / "out.glb")
+
+    for read in (meshbits.load_mesh, load_document, scene_info, compress):
+        try:
+            read(file)
+        except meshbits.MeshbitsError:
+            pass
+
+
+def test_the_rich_gltf_document_reads_whole(tmp_path):
+    """The property test above starts from a valid document: every reader takes it."""
+    from meshbits.gltf import load_document
+    from meshbits.scene import scene_info
+
+    file = tmp_path / "rich.gltf"
+    file.write_text(json.dumps(_rich_gltf()))
+    vertices, faces = meshbits.load_mesh(file)
+    assert len(faces) == 1 and vertices[:, 0].max() == pytest.approx(2.0)  # node translation
+    document = load_document(file)
+    assert len(document.json["meshes"]) == 1
+    info = scene_info(file)
+    assert info["meshes"][0]["primitives"][0]["faces"] == 1
+    assert len(RICH_GLTF_PATHS) >= 25

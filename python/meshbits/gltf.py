@@ -34,8 +34,8 @@ __all__ = [
     "Document",
     "PrimitiveData",
     "image_size",
-    "load_compressed_document",
     "load_document",
+    "load_gltf_document",
     "unread_required_extensions",
     "uses_draco",
     "uses_meshopt",
@@ -674,16 +674,18 @@ def uses_draco(document: Any) -> bool:
     )
 
 
-def load_compressed_document(
+def load_gltf_document(
     path: str | Path, file_type: str, data: bytes | None = None
 ) -> Document | None:
     """The document of a ``.glb`` or ``.gltf`` file (``file_type`` ``"glb"`` or
-    ``"gltf"``; its bytes ``data``, or read from ``path``) whose geometry is compressed
-    with meshopt or Draco, for this reader to decode: trimesh does not decode meshopt,
-    and it reads a Draco primitive it cannot decode as zeros with only a log message
-    (a GLB with one byte of its Draco data changed gave ``k`` a mesh at the origin).
-    None for any other file. Raises :class:`MeshFileError` naming ``path`` when the file
-    cannot be read."""
+    ``"gltf"``; its bytes ``data``, or read from ``path``), for :func:`meshbits.load_mesh`
+    to take its triangles from (:meth:`Document.world_triangles`): one glTF reader for
+    every command. trimesh does not decode meshopt, read a Draco primitive it could not
+    decode as zeros with only a log message (a GLB with one byte of its Draco data changed
+    gave ``k`` a mesh at the origin), and refused a valid document whose root node holds a
+    skin and a camera ("No path from world->1!"). None when the file's JSON cannot be
+    parsed (its own reader explains that). Raises :class:`MeshFileError` naming ``path``
+    when the file cannot be read."""
     path = Path(path)
     if file_type not in ("glb", "gltf"):
         return None
@@ -703,12 +705,12 @@ def load_compressed_document(
             document = json.loads(head.decode("utf-8"))
     except (ValueError, UnicodeDecodeError):
         return None  # not this reader's to explain: the file's own reader does
+    if document is None:
+        return None
     try:
         check_references(document)
     except MeshFileError as err:
         raise MeshFileError(f"cannot read {path}: {err}") from None
-    if not (uses_meshopt(document) or uses_draco(document)):
-        return None
     if data is None:
         return load_document(path)
     try:
@@ -757,8 +759,10 @@ def check_references(document: Any) -> None:
             raise MeshFileError(f"{kind} is not an array of objects")
         sizes[kind] = len(items)
 
-    def ref(value: Any, kind: str, where: str) -> None:
+    def ref(value: Any, kind: str, where: str, required: bool = False) -> None:
         if value is None:
+            if required:
+                raise MeshFileError(f"{where} is missing: it must name one of the {kind}")
             return
         if isinstance(value, bool) or not isinstance(value, int):
             raise MeshFileError(f"{where} is {value!r}, not an index into {kind}")
@@ -782,27 +786,33 @@ def check_references(document: Any) -> None:
     ref(document.get("scene"), "scenes", "scene")
     for i, scene in enumerate(document.get("scenes", [])):
         for k, node in enumerate(array(scene.get("nodes"), f"scenes[{i}].nodes")):
-            ref(node, "nodes", f"scenes[{i}].nodes[{k}]")
+            ref(node, "nodes", f"scenes[{i}].nodes[{k}]", True)
     for i, node in enumerate(document.get("nodes", [])):
         where = f"nodes[{i}]"
         for key, kind in (("mesh", "meshes"), ("skin", "skins"), ("camera", "cameras")):
             ref(node.get(key), kind, f"{where}.{key}")
         for k, child in enumerate(array(node.get("children"), f"{where}.children")):
-            ref(child, "nodes", f"{where}.children[{k}]")
+            ref(child, "nodes", f"{where}.children[{k}]", True)
     for m, mesh in enumerate(document.get("meshes", [])):
         for p, prim in enumerate(array(mesh.get("primitives"), f"meshes[{m}].primitives")):
             where = f"meshes[{m}].primitives[{p}]"
             prim = obj(prim, where)
             for name, index in obj(prim.get("attributes"), f"{where}.attributes").items():
-                ref(index, "accessors", f"{where}.attributes.{name}")
+                ref(index, "accessors", f"{where}.attributes.{name}", True)
             ref(prim.get("indices"), "accessors", f"{where}.indices")
             ref(prim.get("material"), "materials", f"{where}.material")
             for t, target in enumerate(array(prim.get("targets"), f"{where}.targets")):
                 for name, index in obj(target, f"{where}.targets[{t}]").items():
-                    ref(index, "accessors", f"{where}.targets[{t}].{name}")
+                    ref(index, "accessors", f"{where}.targets[{t}].{name}", True)
             extensions = obj(prim.get("extensions"), f"{where}.extensions")
             draco = obj(extensions.get(DRACO), f"{where}.extensions.{DRACO}")
-            ref(draco.get("bufferView"), "bufferViews", f"{where}.extensions.{DRACO}.bufferView")
+            if DRACO in extensions:
+                ref(
+                    draco.get("bufferView"),
+                    "bufferViews",
+                    f"{where}.extensions.{DRACO}.bufferView",
+                    True,
+                )
     for i, accessor in enumerate(document.get("accessors", [])):
         count = accessor.get("count")
         if isinstance(count, bool) or not isinstance(count, int) or count < 0:
@@ -817,14 +827,27 @@ def check_references(document: Any) -> None:
         ref(accessor.get("bufferView"), "bufferViews", f"accessors[{i}].bufferView")
         sparse = obj(accessor.get("sparse"), f"accessors[{i}].sparse")
         for part in ("indices", "values"):
+            if not sparse:
+                break
             inner = obj(sparse.get(part), f"accessors[{i}].sparse.{part}")
-            ref(inner.get("bufferView"), "bufferViews", f"accessors[{i}].sparse.{part}.bufferView")
+            ref(
+                inner.get("bufferView"),
+                "bufferViews",
+                f"accessors[{i}].sparse.{part}.bufferView",
+                True,
+            )
     for i, view in enumerate(document.get("bufferViews", [])):
-        ref(view.get("buffer"), "buffers", f"bufferViews[{i}].buffer")
+        ref(view.get("buffer"), "buffers", f"bufferViews[{i}].buffer", True)
         extensions = obj(view.get("extensions"), f"bufferViews[{i}].extensions")
         for name in MESHOPT_EXTENSIONS:
             inner = obj(extensions.get(name), f"bufferViews[{i}].extensions.{name}")
-            ref(inner.get("buffer"), "buffers", f"bufferViews[{i}].extensions.{name}.buffer")
+            if name in extensions:
+                ref(
+                    inner.get("buffer"),
+                    "buffers",
+                    f"bufferViews[{i}].extensions.{name}.buffer",
+                    True,
+                )
     for i, image in enumerate(document.get("images", [])):
         ref(image.get("bufferView"), "bufferViews", f"images[{i}].bufferView")
     for i, texture in enumerate(document.get("textures", [])):
@@ -840,7 +863,7 @@ def check_references(document: Any) -> None:
             for key, inner in value.items():
                 here = f"{where}.{key}"
                 if key.endswith(("Texture", "texture")) and isinstance(inner, dict):
-                    ref(inner.get("index"), "textures", f"{here}.index")
+                    ref(inner.get("index"), "textures", f"{here}.index", True)
                 texture_infos(inner, here)
         elif isinstance(value, list):
             for k, inner in enumerate(value):
@@ -850,7 +873,7 @@ def check_references(document: Any) -> None:
         texture_infos(material, f"materials[{i}]")
     for i, skin in enumerate(document.get("skins", [])):
         for k, joint in enumerate(array(skin.get("joints"), f"skins[{i}].joints")):
-            ref(joint, "nodes", f"skins[{i}].joints[{k}]")
+            ref(joint, "nodes", f"skins[{i}].joints[{k}]", True)
         ref(skin.get("skeleton"), "nodes", f"skins[{i}].skeleton")
         ref(skin.get("inverseBindMatrices"), "accessors", f"skins[{i}].inverseBindMatrices")
     for a, animation in enumerate(document.get("animations", [])):
@@ -858,7 +881,7 @@ def check_references(document: Any) -> None:
         for k, sampler in enumerate(samplers):
             sampler = obj(sampler, f"animations[{a}].samplers[{k}]")
             for key in ("input", "output"):
-                ref(sampler.get(key), "accessors", f"animations[{a}].samplers[{k}].{key}")
+                ref(sampler.get(key), "accessors", f"animations[{a}].samplers[{k}].{key}", True)
         for k, channel in enumerate(array(animation.get("channels"), f"animations[{a}].channels")):
             where = f"animations[{a}].channels[{k}]"
             channel = obj(channel, where)

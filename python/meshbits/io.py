@@ -150,11 +150,10 @@ def parse_mesh_file(
 ) -> Any:
     """A checked mesh file (what :func:`checked_mesh_file` returned for ``path``) as a
     trimesh object: a Draco file (what ``meshbits compress -o x.drc`` writes) decoded with
-    DracoPy; a GLB or glTF compressed with ``EXT_meshopt_compression``,
-    ``KHR_meshopt_compression`` (which trimesh does not decode) or
-    ``KHR_draco_mesh_compression`` (which trimesh reads as zeros when it cannot decode it)
-    read by meshbits's glTF reader, its meshes in world coordinates as one; anything else
-    parsed by trimesh."""
+    DracoPy; a GLB or glTF read by meshbits's glTF reader (the one the scene commands
+    use: it decodes ``EXT_meshopt_compression``, ``KHR_meshopt_compression`` and
+    ``KHR_draco_mesh_compression`` and checks every reference first), its triangle
+    primitives in world coordinates as one; anything else parsed by trimesh."""
     import trimesh
 
     if file_type == "drc":
@@ -163,10 +162,10 @@ def parse_mesh_file(
         data = source.read() if isinstance(source, _io.BytesIO) else path.read_bytes()
         return trimesh.Trimesh(*decode_draco(data), process=False)
     if file_type in ("glb", "gltf"):
-        from .gltf import load_compressed_document
+        from .gltf import load_gltf_document
 
         data = source.getvalue() if isinstance(source, _io.BytesIO) else None
-        document = load_compressed_document(path, file_type, data)
+        document = load_gltf_document(path, file_type, data)
         if document is not None:
             try:
                 vertices, faces = document.world_triangles()
