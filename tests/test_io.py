@@ -290,10 +290,11 @@ def _rich_gltf() -> dict:
     return {
         "asset": {"version": "2.0"},
         "scene": 0,
-        "scenes": [{"nodes": [0]}],
+        "scenes": [{"nodes": [0, 2]}],
         "nodes": [
-            {"children": [1], "skin": 0, "camera": 0},
+            {"children": [1], "skin": 0, "camera": 0, "rotation": [0, 0, 0, 1], "scale": [1, 1, 1]},
             {"mesh": 0, "translation": [1, 0, 0]},
+            {"matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]},
         ],
         "cameras": [{"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.1}}],
         "meshes": [
@@ -375,15 +376,37 @@ def _reference_paths(value, path=()):
 RICH_GLTF_PATHS = sorted(_reference_paths(_rich_gltf()), key=str)
 
 
+def _value_paths(value, path=()):
+    """Every place that holds a count, offset, length, stride, type, mode, transform or
+    animation path: what a reader sizes or shapes its arrays by."""
+    names = {
+        "count", "byteOffset", "byteLength", "byteStride", "componentType", "type", "mode",
+        "matrix", "translation", "rotation", "scale", "path", "primitives", "normalized",
+    }  # fmt: skip
+    if isinstance(value, dict):
+        for key, inner in value.items():
+            if key in names:
+                yield (*path, key)
+            yield from _value_paths(inner, (*path, key))
+    elif isinstance(value, list):
+        for k, inner in enumerate(value):
+            yield from _value_paths(inner, (*path, k))
+
+
+RICH_GLTF_VALUE_PATHS = sorted(_value_paths(_rich_gltf()), key=str)
+
+
 @settings(
     max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(
     edits=st.lists(
         st.tuples(
-            st.sampled_from(RICH_GLTF_PATHS),
+            st.sampled_from(RICH_GLTF_PATHS + RICH_GLTF_VALUE_PATHS),
             st.one_of(
                 st.integers(-2, 12),
+                st.sampled_from([2, 3, 16, 5126, 5123, 2**31, 10**12, -(2**31), "VEC3", "MAT4"]),
+                st.lists(st.floats(-2, 2), min_size=2, max_size=5),
                 st.none(),
                 st.booleans(),
                 st.floats(allow_nan=True),
@@ -407,11 +430,16 @@ def test_a_gltf_with_any_broken_reference_is_refused_in_words(tmp_path, edits):
     document = _rich_gltf()
     for path, value in edits:
         parent = document
-        for key in path[:-1]:
-            parent = parent[key]
+        try:
+            for key in path[:-1]:
+                parent = parent[key]
+            parent[path[-1]]  # an earlier edit may have replaced the container
+        except (KeyError, IndexError, TypeError):
+            continue
         parent[path[-1]] = value
     file = tmp_path / "broken.gltf"
     file.write_text(json.dumps(document))
+
     def compress(path):
         return meshbits.compress_scene(path, error=0.01, output=tmp_path / "out.glb")
 

@@ -899,6 +899,188 @@ def check_references(document: Any) -> None:
                 "nodes",
                 f"{where}.target.node",
             )
+    _check_values(document)
+
+
+#: Accessor types each standard attribute allows (glTF 2.0 Sec. 3.7.2.1).
+ATTRIBUTE_TYPES = {
+    "POSITION": ("VEC3",),
+    "NORMAL": ("VEC3",),
+    "TANGENT": ("VEC4",),
+    "TEXCOORD": ("VEC2",),
+    "COLOR": ("VEC3", "VEC4"),
+    "JOINTS": ("VEC4",),
+    "WEIGHTS": ("VEC4",),
+}
+
+#: Animation channel paths (glTF 2.0, and KHR_animation_pointer's ``pointer``).
+ANIMATION_PATHS = ("translation", "rotation", "scale", "weights", "pointer")
+
+
+def _check_values(document: dict[str, Any]) -> None:
+    """The values :func:`check_references` does not cover and the readers rely on, once
+    every index is known to be valid: counts, offsets, lengths and strides that are
+    non-negative integers and fit their buffer view and buffer, accessor types that fit
+    their attribute, node transforms of the right number of finite numbers, a node
+    hierarchy of disjoint trees, primitive modes and animation paths of the
+    specification."""
+
+    def integer(
+        container: dict[str, Any], key: str, where: str, least: int, *, required: bool = False
+    ) -> int | None:
+        if key not in container and not required:
+            return None
+        value = container.get(key)
+        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            raise MeshFileError(f"{where}.{key} is {value!r}, not an integer >= {least}")
+        return value
+
+    def numbers(container: dict[str, Any], key: str, count: int | None, where: str) -> None:
+        if key not in container:
+            return
+        value = container[key]
+        if count is None:
+            count = len(value) if isinstance(value, list) else -1
+        if (
+            not isinstance(value, list)
+            or len(value) != count
+            or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                for x in value
+            )
+        ):
+            size = "a list of" if count < 0 else str(count)
+            raise MeshFileError(f"{where}.{key} is not {size} finite numbers")
+
+    buffers = document.get("buffers", [])
+    views = document.get("bufferViews", [])
+    accessors = document.get("accessors", [])
+    for i, buffer in enumerate(buffers):
+        integer(buffer, "byteLength", f"buffers[{i}]", 1, required=True)
+    for i, view in enumerate(views):
+        where = f"bufferViews[{i}]"
+        offset = integer(view, "byteOffset", f"{where}", 0) or 0
+        length = integer(view, "byteLength", f"{where}", 1, required=True)
+        stride = integer(view, "byteStride", f"{where}", 4)
+        if stride is not None and (stride > 252 or stride % 4):
+            raise MeshFileError(f"{where}.byteStride is {stride}: not a multiple of 4 up to 252")
+        available = buffers[view["buffer"]]["byteLength"]
+        if offset + length > available:
+            raise MeshFileError(
+                f"{where} ends at byte {offset + length:,}, past its buffer's byteLength "
+                f"({available:,})"
+            )
+    for i, accessor in enumerate(accessors):
+        where = f"accessors[{i}]"
+        offset = integer(accessor, "byteOffset", f"{where}", 0) or 0
+        if "normalized" in accessor and not isinstance(accessor["normalized"], bool):
+            raise MeshFileError(f"{where}.normalized is {accessor['normalized']!r}, not a boolean")
+        count = accessor["count"]
+        element = (
+            COMPONENT_DTYPES[accessor["componentType"]].itemsize * TYPE_WIDTHS[accessor["type"]]
+        )
+        if accessor.get("bufferView") is not None and count > 0:
+            view = views[accessor["bufferView"]]
+            stride = view.get("byteStride") or element
+            if stride < element:
+                raise MeshFileError(
+                    f"{where}: elements of {element} bytes in bufferViews"
+                    f"[{accessor['bufferView']}] whose byteStride is {stride}"
+                )
+            end = offset + stride * (count - 1) + element
+            if end > view["byteLength"]:
+                raise MeshFileError(
+                    f"{where} ends at byte {end:,} of bufferViews[{accessor['bufferView']}], "
+                    f"past its byteLength ({view['byteLength']:,})"
+                )
+        sparse = accessor.get("sparse")
+        if sparse:
+            stored = integer(sparse, "count", f"{where}.sparse", 1, required=True)
+            if stored > count:
+                raise MeshFileError(f"{where}.sparse.count is {stored}, over the count {count}")
+            kind = sparse["indices"].get("componentType")
+            if kind not in (5121, 5123, 5125):
+                raise MeshFileError(
+                    f"{where}.sparse.indices.componentType is {kind!r}, not an unsigned "
+                    "integer type"
+                )
+            sizes = {"indices": COMPONENT_DTYPES[kind].itemsize, "values": element}
+            for part in ("indices", "values"):
+                start = integer(sparse[part], "byteOffset", f"{where}.sparse.{part}", 0)
+                view = views[sparse[part]["bufferView"]]
+                end = (start or 0) + stored * sizes[part]
+                if end > view["byteLength"]:
+                    raise MeshFileError(
+                        f"{where}.sparse.{part} ends at byte {end:,} of bufferViews"
+                        f"[{sparse[part]['bufferView']}], past its byteLength "
+                        f"({view['byteLength']:,})"
+                    )
+
+    def accessor_type(index: int, allowed: tuple[str, ...], where: str) -> None:
+        kind = accessors[index]["type"]
+        if kind not in allowed:
+            raise MeshFileError(f"{where} is a {kind} accessor, not {' or '.join(allowed)}")
+
+    for m, mesh in enumerate(document.get("meshes", [])):
+        primitives = mesh.get("primitives")
+        if not isinstance(primitives, list) or not primitives:
+            raise MeshFileError(f"meshes[{m}].primitives is not a non-empty array")
+        for p, prim in enumerate(primitives):
+            where = f"meshes[{m}].primitives[{p}]"
+            mode = integer(prim, "mode", f"{where}", 0)
+            if mode is not None and mode > 6:
+                raise MeshFileError(f"{where}.mode is {mode}, not a glTF primitive mode (0-6)")
+            if DRACO in (prim.get("extensions") or {}):
+                continue  # Draco's attributes are described by its own stream
+            for name, index in prim.get("attributes", {}).items():
+                allowed = ATTRIBUTE_TYPES.get(name.split("_")[0] if "_" in name else name)
+                if allowed is not None and not name.startswith("_"):
+                    accessor_type(index, allowed, f"{where}.attributes.{name}")
+            if prim.get("indices") is not None:
+                accessor_type(prim["indices"], ("SCALAR",), f"{where}.indices")
+                kind = accessors[prim["indices"]]["componentType"]
+                if kind not in (5121, 5123, 5125):
+                    raise MeshFileError(
+                        f"{where}.indices has componentType {kind}, not an unsigned integer type"
+                    )
+            for t, target in enumerate(prim.get("targets") or []):
+                for name, index in target.items():
+                    if name in ("POSITION", "NORMAL", "TANGENT"):
+                        accessor_type(index, ("VEC3",), f"{where}.targets[{t}].{name}")
+    for m, mesh in enumerate(document.get("meshes", [])):
+        numbers(mesh, "weights", None, f"meshes[{m}]")
+    nodes = document.get("nodes", [])
+    parent: dict[int, int] = {}
+    for i, node in enumerate(nodes):
+        where = f"nodes[{i}]"
+        for key, count in (("matrix", 16), ("translation", 3), ("rotation", 4), ("scale", 3)):
+            numbers(node, key, count, where)
+        numbers(node, "weights", None, where)
+        for child in node.get("children") or []:
+            if child == i or child in parent:
+                raise MeshFileError(
+                    f"{where}.children holds node {child}, "
+                    + ("itself" if child == i else f"already a child of node {parent[child]}")
+                    + ": the nodes must form trees"
+                )
+            parent[child] = i
+    for start in range(len(nodes)):
+        seen, node = {start}, start
+        while node in parent:
+            node = parent[node]
+            if node in seen:
+                raise MeshFileError(
+                    f"nodes[{start}] is its own ancestor: the nodes must form trees"
+                )
+            seen.add(node)
+    for a, animation in enumerate(document.get("animations", [])):
+        for k, channel in enumerate(animation.get("channels") or []):
+            path = (channel.get("target") or {}).get("path")
+            if path not in ANIMATION_PATHS:
+                raise MeshFileError(
+                    f"animations[{a}].channels[{k}].target.path is {path!r}, not one of "
+                    f"{', '.join(ANIMATION_PATHS)}"
+                )
 
 
 def _from_glb(data: bytes, base: Path | None) -> Document:
