@@ -769,6 +769,9 @@ def check_references(document: Any) -> None:
         if not 0 <= value < sizes[kind]:
             raise MeshFileError(f"{where} is {value}, past the end of {kind} ({sizes[kind]})")
 
+    def need(container: dict[str, Any], key: str, kind: str, where: str) -> None:
+        ref(container.get(key), kind, f"{where}.{key}", True)
+
     def obj(value: Any, where: str) -> dict[str, Any]:
         if value is None:
             return {}
@@ -807,12 +810,7 @@ def check_references(document: Any) -> None:
             extensions = obj(prim.get("extensions"), f"{where}.extensions")
             draco = obj(extensions.get(DRACO), f"{where}.extensions.{DRACO}")
             if DRACO in extensions:
-                ref(
-                    draco.get("bufferView"),
-                    "bufferViews",
-                    f"{where}.extensions.{DRACO}.bufferView",
-                    True,
-                )
+                need(draco, "bufferView", "bufferViews", f"{where}.extensions.{DRACO}")
     for i, accessor in enumerate(document.get("accessors", [])):
         count = accessor.get("count")
         if isinstance(count, bool) or not isinstance(count, int) or count < 0:
@@ -830,24 +828,14 @@ def check_references(document: Any) -> None:
             if not sparse:
                 break
             inner = obj(sparse.get(part), f"accessors[{i}].sparse.{part}")
-            ref(
-                inner.get("bufferView"),
-                "bufferViews",
-                f"accessors[{i}].sparse.{part}.bufferView",
-                True,
-            )
+            need(inner, "bufferView", "bufferViews", f"accessors[{i}].sparse.{part}")
     for i, view in enumerate(document.get("bufferViews", [])):
         ref(view.get("buffer"), "buffers", f"bufferViews[{i}].buffer", True)
         extensions = obj(view.get("extensions"), f"bufferViews[{i}].extensions")
         for name in MESHOPT_EXTENSIONS:
             inner = obj(extensions.get(name), f"bufferViews[{i}].extensions.{name}")
             if name in extensions:
-                ref(
-                    inner.get("buffer"),
-                    "buffers",
-                    f"bufferViews[{i}].extensions.{name}.buffer",
-                    True,
-                )
+                need(inner, "buffer", "buffers", f"bufferViews[{i}].extensions.{name}")
     for i, image in enumerate(document.get("images", [])):
         ref(image.get("bufferView"), "bufferViews", f"images[{i}].bufferView")
     for i, texture in enumerate(document.get("textures", [])):
