@@ -616,7 +616,12 @@ def test_a_gltf_output_names_the_buffer_written_beside_it(tmp_path, capsys):
     line = capsys.readouterr().out.splitlines()[0]
     assert f"-> {out} and out.bin (draco)" in line, line
     assert (tmp_path / "out.bin").is_file()
-    # The table's lengths are metres, as the JSON's length_unit says.
+    # The table's lengths are in the unit the JSON's length_unit names: the PLY's own
+    # coordinates, a glTF's meters.
     assert main([*argv, "-o", str(tmp_path / "o.glb"), "--quiet"]) == 0
+    table = capsys.readouterr().out
+    assert "error (mesh units)" in table and "bound (mesh units)" in table
+    again = ["compress", str(tmp_path / "o.glb"), "--error", "0.01", "--relative"]
+    assert main([*again, "-o", str(tmp_path / "p.glb"), "--quiet"]) == 0
     table = capsys.readouterr().out
     assert "error (m)" in table and "bound (m)" in table

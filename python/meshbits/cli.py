@@ -598,8 +598,8 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         "V in",
         "V out",
         "bytes",
-        "error (m)",
-        "bound (m)",
+        f"error ({length_unit_of(args.mesh)})",
+        f"bound ({length_unit_of(args.mesh)})",
         "met",
     )
     rows = [

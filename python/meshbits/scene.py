@@ -59,6 +59,7 @@ from .search import (
     certify_answer,
     run_search,
 )
+from .units import length_unit_of
 
 __all__ = [
     "CODECS",
@@ -853,6 +854,10 @@ def compress_scene(
         if progress is not None:
             progress(Progress("compress_scene", line))
 
+    # A glTF's lengths are meters; another file's are its own coordinates, as its JSON
+    # report says (``length_unit``).
+    unit = "m" if isinstance(source, Document) else length_unit_of(source)
+
     instances = document.mesh_instances()
     jobs: list[_Job] = []
     kept: list[PrimitiveData] = []
@@ -889,7 +894,7 @@ def compress_scene(
                 f"mesh {job.data.mesh} primitive {job.data.index} within {world_error:.4g}: "
                 f"B = {outcome[0].bits}, V = {len(outcome[1].vertices)}, "
                 f"{outcome[1].size_bits // 8} bytes, error "
-                f"{outcome[0].measured_error * job.scale:.4g} (m)"
+                f"{outcome[0].measured_error * job.scale:.4g} ({unit})"
             )
         return outcomes
 
