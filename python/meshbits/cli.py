@@ -582,6 +582,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     target = "(not written: use -o x.glb)" if args.output is None else str(args.output)
     if args.output is not None and args.output.suffix.lower() == ".gltf":
         target += f" and {args.output.with_suffix('.bin').name}"
+    unit = length_unit_of(args.mesh)
     print(
         f"{args.mesh} -> {target} ({result.codec}): {result.input_bytes} -> "
         f"{result.size_bytes} bytes; budget {_budget_text(args)}"
@@ -598,8 +599,8 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         "V in",
         "V out",
         "bytes",
-        f"error ({length_unit_of(args.mesh)})",
-        f"bound ({length_unit_of(args.mesh)})",
+        f"error ({unit})",
+        f"bound ({unit})",
         "met",
     )
     rows = [

@@ -37,8 +37,6 @@ __all__ = [
     "load_document",
     "load_gltf_document",
     "unread_required_extensions",
-    "uses_draco",
-    "uses_meshopt",
 ]
 
 #: numpy dtype of each glTF component type.
@@ -629,51 +627,6 @@ def load_document(path: str | Path) -> Document:
         raise MeshFileError(f"cannot read {path}: {explain(kind.lstrip('.'), err)}") from err
 
 
-def _glb_json(head: bytes) -> Any:
-    """The JSON of a GLB file from its first bytes (None if they do not hold it)."""
-    if len(head) < 20 or head[:4] != GLB_MAGIC or head[16:20] != b"JSON":
-        return None
-    (length,) = struct.unpack("<I", head[12:16])
-    try:
-        return json.loads(head[20 : 20 + length].decode("utf-8"))
-    except (ValueError, UnicodeDecodeError):
-        return None
-
-
-def uses_meshopt(document: Any) -> bool:
-    """Whether a glTF JSON declares ``EXT_meshopt_compression`` or
-    ``KHR_meshopt_compression`` (in ``extensionsUsed`` or ``extensionsRequired``) or has a
-    bufferView that carries one."""
-    if not isinstance(document, dict):
-        return False
-    declared = [
-        name
-        for key in ("extensionsUsed", "extensionsRequired")
-        if isinstance(document.get(key), list)
-        for name in document[key]
-    ]
-    if any(name in MESHOPT_EXTENSIONS for name in declared):
-        return True
-    views = document.get("bufferViews") or []
-    return any(
-        isinstance(view, dict)
-        and isinstance(view.get("extensions"), dict)
-        and any(name in view["extensions"] for name in MESHOPT_EXTENSIONS)
-        for view in (views if isinstance(views, list) else [])
-    )
-
-
-def uses_draco(document: Any) -> bool:
-    """Whether a glTF JSON declares ``KHR_draco_mesh_compression`` (in
-    ``extensionsUsed`` or ``extensionsRequired``)."""
-    if not isinstance(document, dict):
-        return False
-    return any(
-        isinstance(document.get(key), list) and DRACO in document[key]
-        for key in ("extensionsUsed", "extensionsRequired")
-    )
-
-
 def load_gltf_document(
     path: str | Path, file_type: str, data: bytes | None = None
 ) -> Document | None:
@@ -683,40 +636,18 @@ def load_gltf_document(
     every command. trimesh does not decode meshopt, read a Draco primitive it could not
     decode as zeros with only a log message (a GLB with one byte of its Draco data changed
     gave ``k`` a mesh at the origin), and refused a valid document whose root node holds a
-    skin and a camera ("No path from world->1!"). None when the file's JSON cannot be
-    parsed (its own reader explains that). Raises :class:`MeshFileError` naming ``path``
-    when the file cannot be read."""
+    skin and a camera ("No path from world->1!"). None for another file type. Raises
+    :class:`MeshFileError` naming ``path`` when the document is refused; a file whose
+    JSON does not parse raises the parser's error, for the caller to explain."""
     path = Path(path)
     if file_type not in ("glb", "gltf"):
         return None
-    if data is None:
-        with open(path, "rb") as handle:
-            head = handle.read(20)
-            if file_type == "glb" and len(head) == 20:
-                head += handle.read(struct.unpack("<I", head[12:16])[0])
-            else:
-                head += handle.read()
-    else:
-        head = data
-    try:
-        if file_type == "glb":
-            document = _glb_json(head)
-        else:
-            document = json.loads(head.decode("utf-8"))
-    except (ValueError, UnicodeDecodeError):
-        return None  # not this reader's to explain: the file's own reader does
-    if document is None:
-        return None
-    try:
-        check_references(document)
-    except MeshFileError as err:
-        raise MeshFileError(f"cannot read {path}: {err}") from None
     if data is None:
         return load_document(path)
     try:
         if file_type == "glb":
             return _from_glb(data, path.parent)
-        return _from_gltf(document, path.parent)
+        return _from_gltf(json.loads(data.decode("utf-8")), path.parent)
     except MeshFileError as err:
         raise MeshFileError(f"cannot read {path}: {err}") from None
 
@@ -824,9 +755,7 @@ def check_references(document: Any) -> None:
             raise MeshFileError(f"accessors[{i}].type is {accessor.get('type')!r}, not a glTF type")
         ref(accessor.get("bufferView"), "bufferViews", f"accessors[{i}].bufferView")
         sparse = obj(accessor.get("sparse"), f"accessors[{i}].sparse")
-        for part in ("indices", "values"):
-            if not sparse:
-                break
+        for part in ("indices", "values") if sparse else ():
             inner = obj(sparse.get(part), f"accessors[{i}].sparse.{part}")
             need(inner, "bufferView", "bufferViews", f"accessors[{i}].sparse.{part}")
     for i, view in enumerate(document.get("bufferViews", [])):
@@ -1010,6 +939,7 @@ def _check_values(document: dict[str, Any]) -> None:
             raise MeshFileError(f"{where} is a {kind} accessor, not {' or '.join(allowed)}")
 
     for m, mesh in enumerate(document.get("meshes", [])):
+        numbers(mesh, "weights", None, f"meshes[{m}]")
         primitives = mesh.get("primitives")
         if not isinstance(primitives, list) or not primitives:
             raise MeshFileError(f"meshes[{m}].primitives is not a non-empty array")
@@ -1035,8 +965,6 @@ def _check_values(document: dict[str, Any]) -> None:
                 for name, index in target.items():
                     if name in ("POSITION", "NORMAL", "TANGENT"):
                         accessor_type(index, ("VEC3",), f"{where}.targets[{t}].{name}")
-    for m, mesh in enumerate(document.get("meshes", [])):
-        numbers(mesh, "weights", None, f"meshes[{m}]")
     nodes = document.get("nodes", [])
     parent: dict[int, int] = {}
     for i, node in enumerate(nodes):

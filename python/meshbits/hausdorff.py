@@ -661,7 +661,7 @@ class Reference:
         if threshold is not None and a_to_b["max"] > threshold:
             # The answer is already no: the other direction keeps its unrefined bound
             # (refining it to decide would take seconds on a large candidate).
-            asked = (statistics, bounds, tolerance, 0, False, threshold, relative_tolerance)
+            asked = (*asked[:3], 0, *asked[4:])
         b_to_a = _core.hausdorff_directed(vertices, faces, self._tree, count, self.seed, *asked)
         return _symmetric(
             _directed(a_to_b),
