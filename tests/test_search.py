@@ -40,7 +40,8 @@ def test_allowed_tessellation_fills_the_budget(budget, q):
         assert t < 0
     else:
         assert combined_error(t, q) == pytest.approx(budget, rel=1e-9)
-        assert combined_error(t * 1.01, q) > budget
+        if t > 1e-6 * budget:  # below, a 1% step of t rounds away in the sum (t 1.4e-24, q 1e-9)
+            assert combined_error(t * 1.01, q) > budget
 
 
 @given(t=positive, q=positive)
