@@ -15,6 +15,11 @@ arrays (best of ``--repeat`` calls for meshbits, of fewer for the slower referen
 
     python benches/bench_refs.py [--repeat 5] [--large] [--skip-hausdorff]
     python benches/bench_refs.py --linearity
+    python benches/bench_refs.py --phases
+
+``--phases`` times K's phases apart on ``bumpy_icosphere(8)`` (the Rust driver
+``benches/k_phases.rs``, built with cargo): the edge table alone against the time the 30x
+target allows.
 """
 
 from __future__ import annotations
@@ -75,6 +80,26 @@ def row(what: str, faces: int, ours: float, ref: float, target: float, note: str
     )
 
 
+def phases(repeat: int) -> None:
+    """K's phases on ``bumpy_icosphere(8)`` timed by the Rust driver, beside
+    ``k_reference`` and the time 30x of it allows."""
+    V, F = refs.bumpy_icosphere(8)
+    ref = best(2, refs.k_reference, V, F)
+    subprocess.run(
+        ["cargo", "build", "--quiet", "--release", "--example", "k_phases"], cwd=ROOT, check=True
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        v, f = Path(tmp) / "v.f64", Path(tmp) / "f.i64"
+        np.ascontiguousarray(V, dtype="<f8").tofile(v)
+        np.ascontiguousarray(F, dtype="<i8").tofile(f)
+        driver = ROOT / "target" / "release" / "examples" / "k_phases"
+        print(subprocess.check_output([driver, v, f, str(max(repeat, 5))], text=True), end="")
+    print(
+        f"\nk_reference: {ref * 1e3:.1f} ms; K at 30x of it: {ref * 1e3 / 30:.1f} ms "
+        f"(load average {os.getloadavg()[0]:.1f} at the end)"
+    )
+
+
 def linearity(repeat: int) -> None:
     """K's ns/face on bumpy icospheres of 1.3M, 5.2M and 21M faces, in one process
     (target: within 1.3x of each other)."""
@@ -103,7 +128,15 @@ def main() -> None:
         action="store_true",
         help="only K's time per face at subdivisions 8, 9 and 10 (1.3M to 21M faces)",
     )
+    parser.add_argument(
+        "--phases",
+        action="store_true",
+        help="only K's phases timed apart (the edge table alone, the weld, the whole K)",
+    )
     args = parser.parse_args()
+    if args.phases:
+        phases(args.repeat)
+        return
     if meshbits._core.BUILD_PROFILE != "release":
         raise SystemExit("benchmark a release build: maturin develop --release")
     if args.linearity:
