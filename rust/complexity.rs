@@ -445,10 +445,10 @@ fn edge_pass<I: VertexIndex>(
     let (bbox_min, bbox_max) = (lo.to_array(), hi.to_array());
     check_extent(bbox_min, bbox_max)?;
     if area.is_nan() || area <= 0.0 {
-        return Err(MeshError::Empty(format!(
-            "mesh has zero surface area: all {} faces are degenerate",
-            faces.len()
-        )));
+        return Err(MeshError::Empty(match faces.len() {
+            1 => "mesh has zero surface area: its only face is degenerate".to_string(),
+            n => format!("mesh has zero surface area: all {n} faces are degenerate"),
+        }));
     }
     let contributions: Vec<Vec<f64>> = blocks
         .iter_mut()

@@ -236,6 +236,47 @@ def test_info_reports_non_finite_positions_and_refuses_bad_indices(tmp_path, cap
     assert main(["info", str(bad)]) == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "out of range" in err and err.count("\n") == 1
+    # The scene path names the face, as k does (it said "an index is out of range").
+    assert main(["compress", str(bad), "--error", "0.1", "-o", str(tmp_path / "o.glb")]) == 2
+    err = capsys.readouterr().err
+    assert "face 0 = [0, 1, 7] refers to a vertex out of range (there are 3 vertices)" in err
+
+
+def test_a_mesh_without_area_is_named_and_counted(tmp_path, capsys):
+    """A PLY whose one face has no area: ``k`` and ``compress`` said "mesh has zero
+    surface area: all 1 faces are degenerate" without the file, ``info`` nothing."""
+    flat = tmp_path / "flat.ply"
+    flat.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 1 1\n2 2 2\n3 0 1 2\n"
+    )
+    for argv in (["k"], ["compress", "--error", "0.1", "-o", str(tmp_path / "o.drc")]):
+        assert main([argv[0], str(flat), *argv[1:]]) == 2
+        err = capsys.readouterr().err
+        assert "flat.ply: mesh has zero surface area: its only face is degenerate" in err, err
+    info = run_json(capsys, "info", str(flat))
+    assert info["meshes"][0]["primitives"][0]["zero_area_faces"] == 1
+    assert main(["info", str(flat)]) == 0
+    assert "1 face of zero area" in capsys.readouterr().out
+
+
+def test_a_file_that_is_not_a_glb_is_worded_alike_by_every_command(tmp_path, capsys):
+    """``k`` said "does not start with a GLB header", ``info`` and ``compress -o x.glb``
+    "not a GLB file (no glTF header)"."""
+    noise = tmp_path / "noise.glb"
+    noise.write_bytes(b"\x17" * 64)
+    messages = set()
+    for argv in (
+        ["k", str(noise)],
+        ["info", str(noise)],
+        ["compress", str(noise), "--error", "0.1", "-o", str(tmp_path / "o.glb")],
+        ["compress", str(noise), "--error", "0.1", "-o", str(tmp_path / "o.drc")],
+    ):
+        assert main(argv) == 2
+        messages.add(capsys.readouterr().err.split("error: ", 1)[1])
+    assert len(messages) == 1, messages
+    assert "does not start with a GLB header" in messages.pop()
 
 
 def test_out_of_range_indices_to_a_scene_output_name_the_file(tmp_path, capsys):
@@ -625,3 +666,18 @@ def test_a_gltf_output_names_the_buffer_written_beside_it(tmp_path, capsys):
     assert main([*again, "-o", str(tmp_path / "p.glb"), "--quiet"]) == 0
     table = capsys.readouterr().out
     assert "error (m)" in table and "bound (m)" in table
+
+
+def test_plot_counts_a_triangle_soups_welded_vertices(tmp_path, capsys):
+    """An STL repeats every corner: ``plot bunny.stl`` gave V = 208,353 (three per face)
+    and B = 17.0 where the same mesh as PLY gives 34,834 and 14.2."""
+    import trimesh
+
+    ply = DATA / "bunny_res4.ply"
+    mesh = trimesh.load(ply, process=False)
+    stl = tmp_path / "b.stl"
+    mesh.export(stl)
+    a = run_json(capsys, "plot", str(ply), "-o", str(tmp_path / "a.png"))
+    b = run_json(capsys, "plot", str(stl), "-o", str(tmp_path / "b.png"))
+    assert a["vertices"] == b["vertices"] <= len(set(mesh.faces.ravel().tolist()))
+    assert b["optimal_bits"] == pytest.approx(a["optimal_bits"])

@@ -429,3 +429,13 @@ def test_a_model_that_asks_for_every_vertex_still_gets_a_simplified_level_measur
     grid = meshbits.cube_grid(fandisk[0].min(axis=0), fandisk[0].max(axis=0))
     whole = encode_draco(fandisk, result.bits, origin=grid[0], grid_size=grid[1])
     assert result.size_bytes < 0.5 * whole.size_bytes
+
+
+def test_an_error_budget_below_float32_precision_says_why_b_stops():
+    """``--error 1e-9`` on a float32 mesh gave up at B = 24 without a word on why (Draco
+    takes up to 30 bits)."""
+    mesh = load("bunny_res4.ply")
+    assert meshbits.precision_bits(mesh[0]) == 24
+    result = meshbits.compress(mesh, error=1e-9, max_iterations=1)
+    assert not result.met and result.bits == 24
+    assert "(B stops at 24: over the grid size, the coordinates'" in result.message

@@ -661,3 +661,41 @@ def test_a_size_budget_is_filled_where_a_tighter_error_would_not_fit():
     assert sized.met and 0.9 * 20_000 <= sized.size_bytes <= 20_000
     tighter = compress_scene(path, error=0.8 * sized.world_error, codec="meshopt")
     assert tighter.size_bytes > 20_000, (tighter.size_bytes, sized.world_error)
+
+
+def test_a_scene_written_as_one_mesh_counts_what_it_leaves_out(tmp_path, capsys):
+    """A glTF scene written to .drc keeps positions only: the materials, textures,
+    images, skins and vertex attributes it leaves out are counted in the JSON
+    (``merged_away``) and named on stderr, and its text reports lengths in meters, as the
+    JSON's ``length_unit`` (it said "mesh units")."""
+    path, _ = build_scene(tmp_path / "scene.glb")
+    data = path.read_bytes()
+    (length,) = struct.unpack_from("<I", data, 12)
+    doc = json.loads(data[20 : 20 + length])
+    attributes = {a for m in doc["meshes"] for p in m["primitives"] for a in p["attributes"]}
+    out = tmp_path / "x.drc"
+    argv = ["compress", str(path), "--error", "0.01", "--relative", "-o", str(out)]
+    assert main([*argv, "--json"]) == 0
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
+    away = report["merged_away"]
+    assert away["attributes"] == sorted(attributes - {"POSITION"})
+    for key in ("materials", "textures", "images", "skins", "animations"):
+        assert away.get(key, 0) == len(doc.get(key, [])), key
+    assert away["materials"] >= 2 and away["skins"] >= 1 and "TEXCOORD_0" in away["attributes"]
+    assert "note: scene.glb is written to .drc as one merged mesh" in captured.err
+    assert "TEXCOORD_0" in captured.err
+    assert report["length_unit"] == report["budget_unit"] == "m"
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert "(mesh units)" not in captured.out + captured.err
+    assert "(m)" in captured.out and "measured error (m)" in captured.out
+    # A batch's row (.drc by default) counts the same.
+    batch = ["batch", str(path), "-o", str(tmp_path / "out"), "--error", "0.01", "--relative"]
+    assert main([*batch, "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)["rows"]
+    assert row["merged_away"] == away
+    # A size budget names its unit too.
+    assert main(["compress", str(path), "--size", "20KB", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["budget_unit"] == "bits" and report["budget_bytes"] == 20_000

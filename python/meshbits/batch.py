@@ -156,6 +156,11 @@ class BatchRow:
         ``pid@host`` of the process that ran the task.
     traceback : str or None
         For an internal error, the traceback (to report the bug).
+    merged_away : dict or None
+        For a glTF input written to ``drc`` or ``ply`` (one merged mesh of positions):
+        what that leaves out, counted (materials, textures, images, skins, animations,
+        morph targets, and the names of the vertex ``attributes`` other than positions;
+        see :func:`meshbits.scene.omitted_by_merging`). None otherwise.
     resumed : bool
         True when a rerun kept this row and its output from an earlier run.
     finished : str
@@ -190,6 +195,7 @@ class BatchRow:
     peak_rss_scope: str | None = None
     worker: str = ""
     traceback: str | None = None
+    merged_away: dict[str, Any] | None = None
     resumed: bool = False
     finished: str = ""
     meshbits: str = ""
@@ -619,7 +625,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
     ``"unusable"``, anything else as ``"internal_error"`` with the traceback."""
     from .compress import compress
     from .io import load_mesh
-    from .scene import compress_scene
+    from .scene import compress_scene, omitted_by_merging
 
     _set_threads(task.threads)
     start = time.perf_counter()
@@ -673,6 +679,8 @@ def _run_task(task: _Task) -> dict[str, Any]:
                 "error_upper": scene.world_error_upper,
             }
         else:
+            if path.suffix.lower() in (".glb", ".gltf"):
+                row["merged_away"] = omitted_by_merging(path)
             vertices, faces = load_mesh(path)
             result = compress(
                 (vertices, faces),

@@ -128,6 +128,36 @@ def _note_unit(args: argparse.Namespace, path: Path) -> None:
         )
 
 
+def _in_unit(text: str, unit: str) -> str:
+    """A message of the library, whose lengths are in "(mesh units)", in the unit the
+    file's JSON report names (meters for a glTF input)."""
+    return text if unit == "mesh units" else text.replace("(mesh units)", f"({unit})")
+
+
+def _budget_unit(args: argparse.Namespace, unit: str) -> str:
+    """The unit of a compress report's ``budget``: bits, the length unit, or vertices."""
+    if args.size is not None:
+        return "bits"
+    return unit if args.error is not None else "vertices"
+
+
+def _note_merged_away(path: Path, suffix: str, away: dict[str, Any]) -> None:
+    """One stderr line naming what a merged-mesh output leaves out of a scene input."""
+    parts = [
+        f"{n} {k.replace('_', ' ')[: None if n != 1 else -1]}"
+        for k, n in away.items()
+        if k != "attributes"
+    ]
+    if away["attributes"]:
+        parts.append("the vertex attributes " + ", ".join(away["attributes"]))
+    if parts:
+        print(
+            f"note: {path.name} is written to {suffix} as one merged mesh of positions: "
+            f"{', '.join(parts)} are not kept (-o x.glb or x.gltf keeps them)",
+            file=sys.stderr,
+        )
+
+
 def _count(smallest: int) -> Callable[[str], int]:
     """An argparse type: a whole number of at least ``smallest``."""
 
@@ -403,6 +433,7 @@ def _budget_text(args: argparse.Namespace) -> str:
 
 def _run_compress(args: argparse.Namespace) -> int:
     from .compress import compress
+    from .scene import omitted_by_merging
 
     _check_relative(args)
     _check_size_model(args)
@@ -426,12 +457,16 @@ def _run_compress(args: argparse.Namespace) -> int:
     for path in [args.mesh, *(args.lods or [])]:
         _input(path)
     _note_unit(args, args.mesh)
+    unit = length_unit_of(args.mesh)
     mesh = load_mesh(args.mesh)
     lods = [load_mesh(path) for path in args.lods] if args.lods else None
+    away = omitted_by_merging(args.mesh) if _is_scene_file(args.mesh) else None
+    if away is not None and not args.quiet:
+        _note_merged_away(args.mesh, suffix, away)
 
     def report(event: Progress) -> None:
         if not args.quiet:
-            print(f"  {event}", file=sys.stderr)
+            print(f"  {_in_unit(str(event), unit)}", file=sys.stderr)
 
     result = compress(
         mesh,
@@ -465,6 +500,8 @@ def _run_compress(args: argparse.Namespace) -> int:
         "output": str(output) if output else None,
         "file_bytes": file_bytes,
         "budget_text": _budget_text(args),
+        "budget_unit": _budget_unit(args, unit),
+        **({} if away is None else {"merged_away": away}),
         **result.to_dict(),
     }
     if args.json:
@@ -476,7 +513,7 @@ def _run_compress(args: argparse.Namespace) -> int:
             f"{len(mesh[1])} faces; "
             f"K = {result.complexity.k:.4g}, S = {result.complexity.grid_size:.6g}",
             [
-                ("budget", f"{_budget_text(args)} ({_budget_in_units(result)})"),
+                ("budget", f"{_budget_text(args)} ({_budget_in_units(result, unit)})"),
                 (
                     "first plan",
                     "none (the smallest output)"
@@ -487,9 +524,9 @@ def _run_compress(args: argparse.Namespace) -> int:
                     "chosen",
                     f"B = {result.bits}, V = {len(result.vertices)}, {len(result.faces)} faces",
                 ),
-                ("measured error (length)", result.error),
+                (f"measured error ({unit})", result.error),
                 *(
-                    [("certified error bound (length)", result.error_upper)]
+                    [(f"certified error bound ({unit})", result.error_upper)]
                     if result.error_upper is not None
                     else []
                 ),
@@ -505,7 +542,7 @@ def _run_compress(args: argparse.Namespace) -> int:
                 ),
             ],
         )
-        print(result.message)
+        print(_in_unit(result.message, unit))
         if suffix in _TRIMESH_FORMATS and file_bytes is not None:
             print(
                 f"wrote {output}: {file_bytes} bytes ({suffix[1:]}, through trimesh; "
@@ -551,10 +588,11 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     _output(args.output)
     _input(args.mesh)
     _note_unit(args, args.mesh)
+    unit = length_unit_of(args.mesh)
 
     def report(event: Progress) -> None:
         if not args.quiet:
-            print(f"  {event}", file=sys.stderr)
+            print(f"  {_in_unit(str(event), unit)}", file=sys.stderr)
 
     result = compress_scene(
         args.mesh,
@@ -574,6 +612,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         "input": str(args.mesh),
         "output": None if args.output is None else str(args.output),
         "budget_text": _budget_text(args),
+        "budget_unit": _budget_unit(args, unit),
         **result.to_dict(),
     }
     if args.json:
@@ -582,7 +621,6 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     target = "(not written: use -o x.glb)" if args.output is None else str(args.output)
     if args.output is not None and args.output.suffix.lower() == ".gltf":
         target += f" and {args.output.with_suffix('.bin').name}"
-    unit = length_unit_of(args.mesh)
     print(
         f"{args.mesh} -> {target} ({result.codec}): {result.input_bytes} -> "
         f"{result.size_bytes} bytes; budget {_budget_text(args)}"
@@ -627,7 +665,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
     for row in [header, *rows]:
         print("  " + "  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)))
-    print(result.message)
+    print(_in_unit(result.message, unit))
     return EXIT_OK if result.met else EXIT_UNMET
 
 
@@ -834,6 +872,9 @@ def _run_info(args: argparse.Namespace) -> int:
             if prim.get("non_finite_positions"):
                 count = prim["non_finite_positions"]
                 extras += f"; {count} position{'s' if count > 1 else ''} NaN or infinite"
+            if prim.get("zero_area_faces"):
+                count = prim["zero_area_faces"]
+                extras += f"; {count} face{'s' if count > 1 else ''} of zero area"
             distinct = prim.get("distinct_vertices", prim["vertices"])
             print(
                 f"  mesh {mesh['mesh']} {mesh['name'] or ''} primitive {prim['primitive']}: "
@@ -846,11 +887,11 @@ def _run_info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _budget_in_units(result: Any) -> str:
+def _budget_in_units(result: Any, unit: str) -> str:
     if result.constraint == "size":
         return f"{result.budget / 8:.6g} bytes"
     if result.constraint == "error":
-        return f"{result.budget:.6g} mesh units"
+        return f"{result.budget:.6g} {unit}"
     return f"{result.budget:.0f} vertices"
 
 
@@ -1114,7 +1155,8 @@ def _run_plan(args: argparse.Namespace) -> int:
         )
     print(
         f"  plan: keep about {round(plan.whole_vertices)} vertices, quantize to "
-        f"{plan.whole_bits} bits per coordinate ({plan.whole_file_size / 8000:.4g} kB)"
+        f"{plan.whole_bits} bit{'' if plan.whole_bits == 1 else 's'} per coordinate "
+        f"({plan.whole_file_size / 8000:.4g} kB)"
     )
     if plan.whole_vertices > report["vertices"]:
         print(f"  note: the mesh has only {report['vertices']} vertices")
@@ -1477,6 +1519,7 @@ def _need_matplotlib(what: str) -> None:
 
 
 def _run_plot(args: argparse.Namespace) -> int:
+    from .compress import welded_vertex_count
     from .plot import error_surface
 
     _need_matplotlib("meshbits plot")
@@ -1484,7 +1527,7 @@ def _run_plot(args: argparse.Namespace) -> int:
     _output(args.output)
     vertices, faces = load_mesh(_input(args.mesh))
     k = shape_complexity(vertices, faces, estimator=args.estimator)
-    n = len(np.unique(np.asarray(faces).ravel()))
+    n = welded_vertex_count((vertices, faces))
     plan = plan_for_vertices(
         max(n, 4), k.k, alpha=args.alpha, connectivity_bits=args.connectivity_bits, grid_size=1.0
     )
@@ -1588,8 +1631,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _failed(args, "interrupted", EXIT_INTERRUPTED)
     except (UserError, MeshbitsError, OSError) as err:
         # Refused input, an unusable file, or a file system that refused a read or write.
-        print(f"{where}: error: {_one_line(err)}", file=sys.stderr)
-        return _failed(args, _one_line(err), EXIT_BAD_INPUT)
+        message = _one_line(err)
+        mesh = getattr(args, "mesh", None)
+        if isinstance(err, MeshbitsError) and isinstance(mesh, Path) and mesh.name not in message:
+            # Found in the mesh once read (no surface, a budget it cannot meet...): name it.
+            message = f"{mesh.name}: {message}"
+        print(f"{where}: error: {message}", file=sys.stderr)
+        return _failed(args, message, EXIT_BAD_INPUT)
     except Exception as err:
         if args.debug:
             traceback.print_exc()

@@ -188,6 +188,12 @@ def _weld(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return (vertices, welded) if merged else mesh
 
 
+def welded_vertex_count(mesh: MeshLike) -> int:
+    """The vertices a mesh's faces use once identical positions are welded (an STL file
+    repeats every shared corner): the ``V`` of the paper's model."""
+    return referenced_vertex_count(_weld(as_mesh(mesh))[1])
+
+
 def compress(
     mesh: MeshLike,
     *,
@@ -362,7 +368,8 @@ def compress(
         constraint=constraint,
         budget=budget,
         met=met,
-        message=_message(constraint, budget, met, chosen, len(search.measurements)),
+        message=_message(constraint, budget, met, chosen, len(search.measurements))
+        + _precision_note(constraint, met, chosen, max_bits, FORMAT_MAX_BITS[format]),
         bits=encoded.bits,
         vertices=encoded.vertices,
         faces=encoded.faces,
@@ -391,6 +398,18 @@ def _describe(constraint: str, amount: float) -> str:
     if constraint == "error":
         return f"{amount:.6g} (mesh units)"
     return f"{amount:.6g} vertices"
+
+
+def _precision_note(
+    constraint: str, met: bool, record: Iteration, max_bits: int, format_bits: int
+) -> str:
+    """Why B stopped below the format's most, when an error budget was missed there."""
+    if met or constraint != "error" or record.bits < max_bits or max_bits >= format_bits:
+        return ""
+    return (
+        f" (B stops at {max_bits}: over the grid size, the coordinates' floating-point "
+        "precision resolves no finer, and the decoded positions are float32 too)"
+    )
 
 
 def _message(constraint: str, budget: float, met: bool, record: Iteration, passes: int) -> str:

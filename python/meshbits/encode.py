@@ -159,9 +159,9 @@ def encode_draco(
     # on the process's stderr: refuse it here in words instead.
     a, b, c = (vertices[faces[:, k]] for k in range(3))
     if ((a == b).all(axis=1) | (b == c).all(axis=1) | (a == c).all(axis=1)).all():
+        which = "its only face is" if len(faces) == 1 else f"all {len(faces)} faces are"
         raise MeshbitsError(
-            f"all {len(faces)} faces are degenerate (two corners at one position): Draco "
-            "encodes none of them"
+            f"{which} degenerate (two corners at one position): Draco encodes none of them"
         )
     try:
         data = DracoPy.encode(

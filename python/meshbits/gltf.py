@@ -395,7 +395,11 @@ class Document:
         positions = attributes.pop("POSITION")
         faces = _triangles(indices.astype(np.int64), mode)
         if len(faces) and (faces.min() < 0 or faces.max() >= len(positions)):
-            raise MeshFileError(f"meshes[{mesh}].primitives[{index}]: an index is out of range")
+            bad = int(np.flatnonzero(((faces < 0) | (faces >= len(positions))).any(axis=1))[0])
+            raise MeshFileError(
+                f"meshes[{mesh}].primitives[{index}]: face {bad} = {faces[bad].tolist()} "
+                f"refers to a vertex out of range (there are {len(positions)} vertices)"
+            )
         types.pop("POSITION", None)
         return PrimitiveData(
             mesh=mesh,
@@ -1003,10 +1007,13 @@ def _from_glb(data: bytes, base: Path | None) -> Document:
     if not data:
         raise MeshFileError("the file is empty")
     if data[:4] != GLB_MAGIC or len(data) < 20:
-        raise MeshFileError("not a GLB file (no glTF header)")
+        raise MeshFileError(
+            "the file does not start with a GLB header ('glTF' and 16 more bytes): "
+            "not a binary glTF"
+        )
     version, length = struct.unpack("<II", data[4:12])
     if version != 2:
-        raise MeshFileError(f"GLB version {version}, not 2")
+        raise MeshFileError(f"GLB version {version}: only version 2 is read")
     if length > len(data):
         raise MeshFileError(
             f"the GLB header declares {length:,} bytes but the file has {len(data):,}: "

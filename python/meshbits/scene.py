@@ -997,13 +997,15 @@ def compress_scene(
         met = all(r.met for r in reports)
         message = (
             f"{'met' if met else 'could not meet'} the world-space error budget of "
-            f"{budget:.6g}: largest error {world_error:.4g}{bound}, {size_bytes} bytes"
+            f"{budget:.6g}: largest error {world_error:.4g}{bound} (mesh units), "
+            f"{size_bytes} bytes"
         )
     else:
         met = size_bytes <= budget / 8
         message = (
             f"{'met' if met else 'could not meet'} the size budget of {budget / 8:.6g} bytes: "
-            f"{size_bytes} bytes, largest world-space error {world_error:.4g}{bound}"
+            f"{size_bytes} bytes, largest world-space error {world_error:.4g}{bound} "
+            "(mesh units)"
         )
     return SceneResult(
         constraint=given[0],
@@ -1493,6 +1495,27 @@ def _apply_dequantization(
             node["scale"] = [float(s) * step for s in node.get("scale", [1.0, 1.0, 1.0])]
 
 
+def omitted_by_merging(path: str | Path) -> dict[str, Any]:
+    """What writing a glTF scene as one merged mesh of positions (what
+    :func:`meshbits.load_mesh` reads, written to ``.drc``, ``.ply``...) leaves out, counted:
+    materials, textures, images, skins, animations and morph targets (those present), and
+    ``attributes``, the names of the vertex attributes other than ``POSITION``. The node
+    hierarchy is flattened: every instance is placed in world space."""
+    j = load_document(path).json
+    attributes: set[str] = set()
+    targets = 0
+    for mesh in j.get("meshes") or []:
+        for primitive in mesh.get("primitives") or []:
+            attributes.update(a for a in primitive.get("attributes") or {} if a != "POSITION")
+            targets += len(primitive.get("targets") or [])
+    counts = {
+        key: len(j.get(key) or [])
+        for key in ("materials", "textures", "images", "skins", "animations")
+    }
+    counts["morph_targets"] = targets
+    return {**{k: n for k, n in counts.items() if n}, "attributes": sorted(attributes)}
+
+
 def scene_info(path: str | Path) -> dict[str, Any]:
     """What a scene file holds: meshes, primitives with their attributes, materials,
     textures and images, nodes, animations, skins, extensions, and bytes by part."""
@@ -1548,6 +1571,12 @@ def scene_info(path: str | Path) -> dict[str, Any]:
         finite = np.isfinite(data.positions).all(axis=1)
         prim_info = meshes[data.mesh]["primitives"][data.index]
         prim_info["non_finite_positions"] = int(len(finite) - finite.sum())
+        corners = data.positions[data.faces]
+        with np.errstate(invalid="ignore"):
+            doubled = np.linalg.norm(
+                np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+            )
+        prim_info["zero_area_faces"] = int((doubled == 0).sum())
         prim_info["distinct_vertices"] = distinct_vertices(data.positions, data.attributes)
     image_views = {
         im["bufferView"] for im in j.get("images", []) if im.get("bufferView") is not None

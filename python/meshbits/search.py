@@ -250,7 +250,8 @@ class Iteration:
     predicted_error : float
         The plan's error (length).
     predicted_size_bits : float
-        The plan's size (bits).
+        The size the plan chose it by (bits): candidates are encoded before one is
+        chosen, so this is its encoded size, ``measured_size_bits``.
     measured_error : float
         Sampled symmetric Hausdorff distance between the original and the decoded output
         (length).
@@ -297,8 +298,7 @@ class Iteration:
             f"error {self.measured_error:.4g}"
             + (f" (certified <= {upper:.4g})" if shown else "")
             + f" (model {self.predicted_error:.4g}) (mesh units), "
-            f"{self.measured_size_bits // 8} bytes (model {self.predicted_size_bits / 8:.0f})"
-            + ("" if self.met else ": misses the budget")
+            f"{self.measured_size_bits // 8} bytes" + ("" if self.met else ": misses the budget")
         )
 
 
@@ -331,6 +331,9 @@ class Level:
         :meth:`Reference.quick_distance` of the unquantized level (length).
     aliases : list
         Other simplifier parameters that gave this same mesh.
+    referenced_vertices : int or None
+        The vertices its faces use, when some of ``vertices`` are not (the original, whose
+        duplicate positions the weld left unused); None when all are.
     """
 
     source: str
@@ -349,9 +352,13 @@ class Level:
     errors: dict[int, float] = field(default_factory=dict)
     quick: float | None = None
     aliases: list[float] = field(default_factory=list)
+    referenced_vertices: int | None = None
 
     @property
     def vertex_count(self) -> int:
+        """The vertices its faces use (the welded original keeps its duplicates unused)."""
+        if self.referenced_vertices is not None:
+            return self.referenced_vertices
         return len(self.vertices)
 
     @property
@@ -543,7 +550,10 @@ class Search:
         self.simplifier_estimates: dict[str, float] = {}
         self._add(
             Level(
-                "original", *original, attributes=None if attributes is None else attributes.values
+                "original",
+                *original,
+                attributes=None if attributes is None else attributes.values,
+                referenced_vertices=self.available,
             )
         )
         self.lods = lods is not None
