@@ -10,11 +10,12 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use meshbits::adjacency::{map_edge_blocks, weld_identical};
-use meshbits::alloc::HugePageAlloc;
 use meshbits::complexity::{Estimator, Tolerances, shape_complexity};
 
+/// The extension module's allocator (with the `python` feature the library installs it).
+#[cfg(not(feature = "python"))]
 #[global_allocator]
-static ALLOCATOR: HugePageAlloc = HugePageAlloc;
+static ALLOCATOR: meshbits::alloc::HugePageAlloc = meshbits::alloc::HugePageAlloc;
 
 fn triples<T>(path: &str, parse: fn([u8; 8]) -> T) -> Vec<[T; 3]> {
     let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));

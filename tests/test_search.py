@@ -329,17 +329,17 @@ def test_exploring_takes_the_smallest_built_level_predicted_within_the_wide_aim(
     assert search._exploring(None) is None
 
 
-def _spot_search(relative_budget: float):
-    """A search (meshoptimizer, Draco) for an error budget on the spot, and the budget in
-    mesh units."""
+def _spot_search(relative_budget: float, mesh=SPOT, samples: int = 10_000):
+    """A search (meshoptimizer, Draco) for an error budget on the spot (or ``mesh``), and
+    the budget in mesh units."""
     from meshbits.hausdorff import Reference
     from meshbits.search import Search
 
-    complexity = meshbits.shape_complexity(SPOT)
+    complexity = meshbits.shape_complexity(mesh)
     budget = relative_budget * complexity.grid_size
     search = Search(
-        SPOT,
-        Reference(SPOT, samples=10_000, seed=0),
+        mesh,
+        Reference(mesh, samples=samples, seed=0),
         constraint="error",
         budget=budget,
         k=complexity.k,
@@ -351,37 +351,21 @@ def _spot_search(relative_budget: float):
         method="meshopt",
         simplifier=None,
         lods=None,
-        samples=10_000,
+        samples=samples,
     )
     return search, budget
 
 
 def test_the_welded_original_counts_the_vertices_its_faces_use():
     """An STL repeats every corner of every face; compress welds it, leaving the copies
-    unused, and the original level counts the vertices its faces use (the soup's 3 per
-    face were taken for its vertex count, 208,353 for the bunny's 34,834)."""
-    from meshbits.hausdorff import Reference
+    unused, and the original level counts the vertices its faces use (the soup's three per
+    face were taken for its vertex count: 208,353 for the bunny's 34,834)."""
     from meshbits.mesh import as_mesh
-    from meshbits.search import Search
 
     vertices, faces = SPOT
     soup = (vertices[faces].reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3))
     welded = compress_module._weld(as_mesh(*soup))
-    complexity = meshbits.shape_complexity(welded)
-    search = Search(
-        welded,
-        Reference(welded, samples=1_000, seed=0),
-        constraint="error",
-        budget=0.01 * complexity.grid_size,
-        k=complexity.k,
-        grid_size=complexity.grid_size,
-        max_bits=16,
-        format="draco",
-        alpha=compress_module.DRACO_ALPHA,
-        connectivity_bits=compress_module.DRACO_CONNECTIVITY_BITS,
-        method="meshopt",
-        samples=1_000,
-    )
+    search, _ = _spot_search(0.01, welded, samples=1_000)
     assert len(welded[0]) == 3 * len(faces)
     assert search.levels[0].source == "original"
     assert search.levels[0].vertex_count == len(np.unique(faces))

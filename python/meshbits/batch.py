@@ -46,7 +46,7 @@ from . import _core
 from .errors import MeshbitsError
 from .io import write_atomic
 from .results import json_ready
-from .units import length_unit_of
+from .units import in_unit, length_unit_of
 
 __all__ = [
     "CODECS",
@@ -667,7 +667,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
             compressed = [p for p in scene.primitives if p.kept is None]
             row |= {
                 "met": scene.met,
-                "message": scene.message,
+                "message": in_unit(scene.message, length_unit_of(path)),
                 "budget": scene.budget if size is None else scene.budget / 8,
                 "input_bytes": scene.input_bytes or row["input_bytes"],
                 "output_bytes": scene.size_bytes,
@@ -694,7 +694,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
             result.write(output)
             row |= {
                 "met": result.met,
-                "message": result.message,
+                "message": in_unit(result.message, length_unit_of(path)),
                 "budget": result.budget if size is None else result.budget / 8,
                 "output_bytes": result.size_bytes,
                 "bits": result.bits,

@@ -56,7 +56,7 @@ from .io import check_writable, example_mesh_path, load_mesh, save_mesh
 from .model import METHODS, plan_for_error, plan_for_size, plan_for_vertices
 from .quantize import cluster
 from .results import Progress, json_ready
-from .units import length_unit_of, parse_length, parse_size
+from .units import in_unit, length_unit_of, parse_length, parse_size
 
 __all__ = ["main"]
 
@@ -126,12 +126,6 @@ def _note_unit(args: argparse.Namespace, path: Path) -> None:
             f"{path.name}, taken as meters (glTF's unit): this format carries no unit",
             file=sys.stderr,
         )
-
-
-def _in_unit(text: str, unit: str) -> str:
-    """A message of the library, whose lengths are in "(mesh units)", in the unit the
-    file's JSON report names (meters for a glTF input)."""
-    return text if unit == "mesh units" else text.replace("(mesh units)", f"({unit})")
 
 
 def _budget_unit(args: argparse.Namespace, unit: str) -> str:
@@ -466,7 +460,7 @@ def _run_compress(args: argparse.Namespace) -> int:
 
     def report(event: Progress) -> None:
         if not args.quiet:
-            print(f"  {_in_unit(str(event), unit)}", file=sys.stderr)
+            print(f"  {in_unit(str(event), unit)}", file=sys.stderr)
 
     result = compress(
         mesh,
@@ -542,7 +536,7 @@ def _run_compress(args: argparse.Namespace) -> int:
                 ),
             ],
         )
-        print(_in_unit(result.message, unit))
+        print(in_unit(result.message, unit))
         if suffix in _TRIMESH_FORMATS and file_bytes is not None:
             print(
                 f"wrote {output}: {file_bytes} bytes ({suffix[1:]}, through trimesh; "
@@ -592,7 +586,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
 
     def report(event: Progress) -> None:
         if not args.quiet:
-            print(f"  {_in_unit(str(event), unit)}", file=sys.stderr)
+            print(f"  {in_unit(str(event), unit)}", file=sys.stderr)
 
     result = compress_scene(
         args.mesh,
@@ -665,7 +659,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
     for row in [header, *rows]:
         print("  " + "  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)))
-    print(_in_unit(result.message, unit))
+    print(in_unit(result.message, unit))
     return EXIT_OK if result.met else EXIT_UNMET
 
 

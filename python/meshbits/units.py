@@ -27,6 +27,12 @@ def length_unit_of(path: str | os.PathLike[str]) -> str:
     return "m" if Path(path).suffix.lower() in (".glb", ".gltf") else "mesh units"
 
 
+def in_unit(text: str, unit: str) -> str:
+    """A message of the library, whose lengths are in "(mesh units)", in ``unit``: the
+    unit a file's JSON report names (``length_unit_of``; meters for a glTF input)."""
+    return text if unit == "mesh units" else text.replace("(mesh units)", f"({unit})")
+
+
 def parse_length(text: str) -> float:
     """Parse a positive length: ``"0.002"`` (the mesh's own units) or ``"1mm"``,
     ``"0.5 cm"``, ``"2in"`` (converted to meters, glTF's unit: ``"1mm"`` = 0.001).
