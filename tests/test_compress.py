@@ -439,3 +439,38 @@ def test_an_error_budget_below_float32_precision_says_why_b_stops():
     result = meshbits.compress(mesh, error=1e-9, max_iterations=1)
     assert not result.met and result.bits == 24
     assert "(B stops at 24: over the grid size, the coordinates'" in result.message
+
+
+def _flat_grid(n: int = 20) -> tuple[np.ndarray, np.ndarray]:
+    """A unit square in the plane z = 0, as an n x n grid of vertices: K = 0."""
+    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
+    vertices = np.c_[x.ravel(), y.ravel(), np.zeros(n * n)]
+    corner = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)).ravel()
+    faces = np.r_[
+        np.c_[corner, corner + 1, corner + n], np.c_[corner + 1, corner + n + 1, corner + n]
+    ]
+    return vertices, faces
+
+
+def test_a_flat_mesh_is_compressed_not_refused():
+    """K = 0 (every edge flat) was refused ("the model has no answer") where the scene
+    path planned it with a small K: a flat mesh keeps its corners."""
+    mesh = _flat_grid()
+    assert meshbits.shape_complexity(mesh).k == 0
+    result = meshbits.compress(mesh, error=0.001, relative=True)
+    assert result.met and result.error_upper <= result.budget
+    assert len(result.vertices) < len(mesh[0])
+    assert np.all(result.vertices[:, 2] == 0)
+    assert np.allclose(result.vertices.min(axis=0)[:2], 0) and np.allclose(
+        result.vertices.max(axis=0)[:2], 1
+    )
+    result = meshbits.compress(mesh, size=8 * 500)
+    assert result.met and result.size_bytes <= 500
+
+
+def test_a_level_with_no_area_left_is_not_encoded():
+    """A simplifier that collapsed the one real triangle to an edge made Draco refuse
+    the level ("its only face is degenerate"), which stopped compress."""
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 2, 2], [3, 3, 3.0]])
+    result = meshbits.compress((vertices, np.array([[0, 1, 2], [3, 4, 3]])), error=0.01)
+    assert len(result.faces) >= 1

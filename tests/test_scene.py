@@ -686,6 +686,7 @@ def test_a_scene_written_as_one_mesh_counts_what_it_leaves_out(tmp_path, capsys)
     assert "note: scene.glb is written to .drc as one merged mesh" in captured.err
     assert "TEXCOORD_0" in captured.err
     assert report["length_unit"] == report["budget_unit"] == "m"
+    assert "(m)" in report["message"] and "mesh units" not in report["message"]
     assert main(argv) == 0
     captured = capsys.readouterr()
     assert "(mesh units)" not in captured.out + captured.err
@@ -699,3 +700,4 @@ def test_a_scene_written_as_one_mesh_counts_what_it_leaves_out(tmp_path, capsys)
     assert main(["compress", str(path), "--size", "20KB", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["budget_unit"] == "bits" and report["budget_bytes"] == 20_000
+    assert "(m)" in report["message"] and "mesh units" not in report["message"]

@@ -498,6 +498,7 @@ def _run_compress(args: argparse.Namespace) -> int:
         **({} if away is None else {"merged_away": away}),
         **result.to_dict(),
     }
+    payload["message"] = in_unit(payload["message"], unit)
     if args.json:
         _print_json(payload, args.mesh)
     else:
@@ -609,6 +610,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
         "budget_unit": _budget_unit(args, unit),
         **result.to_dict(),
     }
+    payload["message"] = in_unit(payload["message"], unit)
     if args.json:
         _print_json(payload, args.mesh)
         return EXIT_OK if result.met else EXIT_UNMET
@@ -1548,7 +1550,10 @@ def _run_plot(args: argparse.Namespace) -> int:
     if args.json:
         _print_json(report)
     else:
-        print(f"wrote {args.output} (K = {k.k:.4g}, V = {n}, optimal B = {plan.bits:.2f})")
+        print(
+            f"wrote {args.output} (K = {k.k:.4g}, V = {n}: the vertices its faces use, "
+            f"identical positions welded; optimal B = {plan.bits:.2f})"
+        )
     return EXIT_OK
 
 

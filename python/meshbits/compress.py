@@ -32,6 +32,7 @@ from .constants import (
     CERTIFY_TOLERANCE,
     DRACO_ALPHA,
     DRACO_CONNECTIVITY_BITS,
+    FLAT_K,
     FORMAT_MAX_BITS,
 )
 from .errors import MeshbitsError
@@ -322,10 +323,6 @@ def compress(
     complexity = shape_complexity(original, estimator=estimator)
     seconds = {"complexity": time.perf_counter() - start}
     grid_size = complexity.grid_size
-    if complexity.k <= 0:
-        raise MeshbitsError(
-            "the mesh has K = 0 (flat or all edges skipped): the model has no answer"
-        )
     if constraint == "error" and relative:
         budget *= grid_size
     max_bits = min(FORMAT_MAX_BITS[format], precision_bits(original[0], grid_size))
@@ -339,7 +336,7 @@ def compress(
         reference,
         constraint=constraint,
         budget=budget,
-        k=complexity.k,
+        k=max(complexity.k, FLAT_K),
         grid_size=grid_size,
         max_bits=max_bits,
         format=format,

@@ -92,3 +92,9 @@ FORMAT_MAX_BITS = {"draco": 30, "glb": 16, "ply": 24}
 #: or a point beyond it found), the tolerance then only sets where a bound with no
 #: threshold would stop.
 CERTIFY_TOLERANCE = 0.05
+
+#: The shape complexity a mesh is planned with when its K is 0 (grid-normalised,
+#: dimensionless): a flat mesh, or one whose every edge is skipped (a single triangle).
+#: The model then plans the fewest vertices the budget allows, and the search measures
+#: from there, as for any mesh.
+FLAT_K = 1e-6

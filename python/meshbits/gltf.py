@@ -1079,7 +1079,7 @@ def _from_trimesh(path: Path) -> Document:
     loaded = parse_mesh_file(path, source, file_type, compressed)
     scene = loaded if isinstance(loaded, trimesh.Scene) else trimesh.Scene(loaded)
     if not any(isinstance(g, trimesh.Trimesh) and len(g.faces) for g in scene.geometry.values()):
-        raise MeshFileError(f"{path} holds no triangles")
+        raise MeshFileError(f"{path} holds no triangle mesh")
     glb = scene.export(file_type="glb")
     return _from_glb(glb, path.parent)
 
@@ -1092,8 +1092,16 @@ def merged_bounds(points: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def finite_or_fail(name: str, values: np.ndarray) -> None:
+    """Refuse ``values`` (rows of an attribute) holding NaN or infinity, naming the first
+    such row as :func:`meshbits.shape_complexity` and ``load_mesh`` do."""
     if values.size and not np.isfinite(values).all():
-        raise MeshFileError(f"{name} holds NaN or infinite values")
+        rows = values.reshape(len(values), -1)
+        bad = ~np.isfinite(rows).all(axis=1)
+        first = int(np.flatnonzero(bad)[0])
+        raise MeshFileError(
+            f"{name}[{first}] = {rows[first].tolist()} is not finite ({int(bad.sum())} "
+            f"row{'s have' if bad.sum() > 1 else ' has'} NaN or infinite values)"
+        )
 
 
 def rounded_bits(value: float, low: int, high: int) -> int:

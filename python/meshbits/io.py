@@ -125,7 +125,7 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
                     raise MeshFileError(f"{path} holds no triangle mesh")
                 loaded = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
             if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-                raise MeshFileError(f"{path} holds no triangles")
+                raise MeshFileError(f"{path} holds no triangle mesh")
             vertices = np.asarray(loaded.vertices, dtype=np.float64)
             faces = np.asarray(loaded.faces, dtype=np.int64)
     except MeshFileError:

@@ -33,6 +33,7 @@ from .constants import (
     CERTIFY_TOLERANCE,
     DRACO_ALPHA,
     DRACO_CONNECTIVITY_BITS,
+    FLAT_K,
     FORMAT_MAX_BITS,
 )
 from .errors import MeshbitsError, MeshFileError
@@ -722,7 +723,7 @@ def _search_primitive(
             samples = min(samples, SCENE_SAMPLES)
         job.reference = Reference(original, samples=samples, seed=seed)
         complexity = shape_complexity(original)
-        job.k = max(complexity.k, 1e-6)
+        job.k = max(complexity.k, FLAT_K)
         job.grid_size = complexity.grid_size
     attributes = None
     if data.attributes:
