@@ -501,6 +501,11 @@ def test_json_reports_name_the_unit_of_their_lengths(tmp_path, capsys):
     ):
         assert run_json(capsys, *argv)["length_unit"] == "m", argv
     # The text report says the same as the JSON.
+    assert main(["k", str(glb)]) == 0
+    out = capsys.readouterr().out
+    assert "grid size S (m)" in out and "(length)" not in out
+    assert main(["k", bunny]) == 0
+    assert "grid size S (mesh units)" in capsys.readouterr().out
     assert main(["hausdorff", bunny, str(glb), "--samples", "1000"]) == 0
     header = capsys.readouterr().out.splitlines()[0]
     assert f"lengths in m; {bunny} names no unit, read as m)" in header, header

@@ -254,15 +254,16 @@ def _run_k(args: argparse.Namespace) -> int:
     if args.json:
         _print_json(report, args.mesh)
         return EXIT_OK
+    unit = length_unit_of(args.mesh)
     _print_table(
         f"{report['mesh']}: {_vertices_text(report['vertices'], report['merged_vertices'])}, "
         f"{report['faces']} faces",
         [
             ("K (grid, /S)", report["k"]),
             ("K (area, /sqrt(A))", report["k_area"]),
-            ("K raw (length)", report["k_raw"]),
-            ("grid size S (length)", report["grid_size"]),
-            ("area (length^2)", report["area"]),
+            (f"K raw ({unit})", report["k_raw"]),
+            (f"grid size S ({unit})", report["grid_size"]),
+            (f"area ({unit}^2)" if unit == "m" else "area (mesh units^2)", report["area"]),
             ("estimator", report["estimator"]),
             ("edges", report["edges"]),
             ("  interior", report["interior_edges"]),
@@ -875,7 +876,7 @@ def _run_info(args: argparse.Namespace) -> int:
             print(
                 f"  mesh {mesh['mesh']} {mesh['name'] or ''} primitive {prim['primitive']}: "
                 f"{_vertices_text(prim['vertices'], prim['vertices'] - distinct)}, "
-                f"{prim['faces']} faces; {attributes}{extras}"
+                f"{prim['faces']} face{'' if prim['faces'] == 1 else 's'}; {attributes}{extras}"
             )
     for image in info["images"]:
         size = "x".join(map(str, image["size"])) if image["size"] else "?"
@@ -1439,6 +1440,7 @@ def _run_quantize(args: argparse.Namespace) -> int:
     if args.json:
         _print_json(report, args.mesh)
         return EXIT_OK
+    unit = length_unit_of(args.mesh)
     _print_table(
         f"{report['mesh']}: {result.input_vertices} vertices, {result.input_faces} faces, "
         f"{result.bits}-bit {result.grid} grid",
@@ -1449,10 +1451,10 @@ def _run_quantize(args: argparse.Namespace) -> int:
             ("faces kept", result.output_faces),
             ("  degenerate (dropped)", result.degenerate_faces),
             ("  duplicate (dropped)", result.duplicate_faces),
-            ("grid size S (length)", result.grid_size),
-            ("step (length)", " ".join(f"{s:.6g}" for s in result.step)),
-            ("bound 0.5|step| (length)", result.bound),
-            ("max displacement (length)", result.max_displacement),
+            (f"grid size S ({unit})", result.grid_size),
+            (f"step ({unit})", " ".join(f"{s:.6g}" for s in result.step)),
+            (f"bound 0.5|step| ({unit})", result.bound),
+            (f"max displacement ({unit})", result.max_displacement),
             ("written to", report["output"] or "-"),
         ],
     )

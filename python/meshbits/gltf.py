@@ -1092,7 +1092,7 @@ def merged_bounds(points: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def finite_or_fail(name: str, values: np.ndarray) -> None:
-    """Refuse ``values`` (rows of an attribute) holding NaN or infinity, naming the first
+    """Refuse positions (rows of coordinates) holding NaN or infinity, naming the first
     such row as :func:`meshbits.shape_complexity` and ``load_mesh`` do."""
     if values.size and not np.isfinite(values).all():
         rows = values.reshape(len(values), -1)
@@ -1100,7 +1100,7 @@ def finite_or_fail(name: str, values: np.ndarray) -> None:
         first = int(np.flatnonzero(bad)[0])
         raise MeshFileError(
             f"{name}[{first}] = {rows[first].tolist()} is not finite ({int(bad.sum())} "
-            f"row{'s have' if bad.sum() > 1 else ' has'} NaN or infinite values)"
+            f"row{'s have' if bad.sum() > 1 else ' has'} NaN or infinite coordinates)"
         )
 
 
