@@ -281,7 +281,8 @@ def compress(
     Raises
     ------
     MeshbitsError
-        Bad mesh or arguments, a budget that is not a positive finite number, K = 0.
+        Bad mesh or arguments, a budget that is not a positive finite number. (A mesh
+        with K = 0, a flat one, is planned with :data:`meshbits.constants.FLAT_K`.)
     """
     given = [
         name
