@@ -19,7 +19,7 @@ import numpy as np
 from .constants import FORMAT_MAX_BITS
 from .errors import MeshbitsError
 from .io import write_atomic
-from .mesh import MeshLike, as_mesh, compact
+from .mesh import MeshLike, all_faces_degenerate, as_mesh, compact
 from .quantize import cube_grid, quantize
 from .results import ArrayResult
 
@@ -157,8 +157,7 @@ def encode_draco(
     lo, size = _grid(vertices, origin, grid_size)
     # Draco refuses a mesh whose every face has two corners at one position, and says so
     # on the process's stderr: refuse it here in words instead.
-    a, b, c = (vertices[faces[:, k]] for k in range(3))
-    if ((a == b).all(axis=1) | (b == c).all(axis=1) | (a == c).all(axis=1)).all():
+    if all_faces_degenerate(vertices, faces):
         which = "its only face is" if len(faces) == 1 else f"all {len(faces)} faces are"
         raise MeshbitsError(
             f"{which} degenerate (two corners at one position): Draco encodes none of them"

@@ -984,15 +984,19 @@ def _check_values(document: dict[str, Any]) -> None:
                     + ": the nodes must form trees"
                 )
             parent[child] = i
+    # Each node has at most one parent: walk up from each node until a root or a node
+    # already known to reach one, so every node is walked once.
+    rooted: set[int] = set()
     for start in range(len(nodes)):
-        seen, node = {start}, start
-        while node in parent:
+        path, node = {start}, start
+        while node in parent and node not in rooted:
             node = parent[node]
-            if node in seen:
+            if node in path:
                 raise MeshFileError(
                     f"nodes[{start}] is its own ancestor: the nodes must form trees"
                 )
-            seen.add(node)
+            path.add(node)
+        rooted.update(path)
     for a, animation in enumerate(document.get("animations", [])):
         for k, channel in enumerate(animation.get("channels") or []):
             path = (channel.get("target") or {}).get("path")

@@ -212,6 +212,13 @@ def referenced(faces: np.ndarray, n_vertices: int | None = None) -> np.ndarray:
     return np.flatnonzero(used)
 
 
+def all_faces_degenerate(vertices: np.ndarray, faces: np.ndarray) -> bool:
+    """True when every face has two corners at one position: nothing with area is left
+    (Draco encodes none of it)."""
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    return bool(((a == b).all(axis=1) | (b == c).all(axis=1) | (a == c).all(axis=1)).all())
+
+
 def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mesh without its unreferenced vertices: ``vertices[used]`` and the faces
     renumbered over them (int64), as ``np.unique(faces, return_inverse=True)`` gives."""

@@ -52,7 +52,7 @@ from . import model
 from .constants import MODEL_MIN_BITS, MODEL_MIN_VERTICES
 from .encode import Encoded, encode
 from .hausdorff import ClosestPoints, Hausdorff, Reference
-from .mesh import as_mesh, referenced
+from .mesh import all_faces_degenerate, as_mesh, referenced
 from .quantize import cube_grid
 from .results import Progress, ProgressCallback
 from .simplify import Simplifier, closest_level, simplify
@@ -735,7 +735,7 @@ class Search:
             )
         level.method = method
         self.seconds["simplify"] += time.perf_counter() - begin
-        if _all_degenerate(level.vertices, level.faces):
+        if all_faces_degenerate(level.vertices, level.faces):
             # Nothing of the surface is left (a single triangle collapsed to an edge).
             return None
         same = self._same_level(level)
@@ -1389,12 +1389,6 @@ def _interpolate(points: list[tuple[float, float]], x: float, slope: float) -> f
         x0, y0 = max(below)
         return y0 * x / x0 if x0 > 0 else y0
     return slope * x
-
-
-def _all_degenerate(vertices: np.ndarray, faces: np.ndarray) -> bool:
-    """True when every face has two corners at one position (no area a codec encodes)."""
-    a, b, c = (vertices[faces[:, k]] for k in range(3))
-    return bool(((a == b).all(axis=1) | (b == c).all(axis=1) | (a == c).all(axis=1)).all())
 
 
 def _box(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
