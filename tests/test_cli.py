@@ -686,3 +686,76 @@ def test_plot_counts_a_triangle_soups_welded_vertices(tmp_path, capsys):
     b = run_json(capsys, "plot", str(stl), "-o", str(tmp_path / "b.png"))
     assert a["vertices"] == b["vertices"] <= len(set(mesh.faces.ravel().tolist()))
     assert b["optimal_bits"] == pytest.approx(a["optimal_bits"])
+
+
+# --- from a new-user check (helper-22) ------------------------------------------------------
+
+
+def test_an_output_naming_the_input_is_refused_before_any_work(tmp_path, capsys):
+    """``-o`` naming the input replaced it with the lossy output (exit 0)."""
+    path = tmp_path / "bunny.ply"
+    path.write_bytes((DATA / "bunny_res4.ply").read_bytes())
+    before = path.read_bytes()
+    for argv in (
+        ["compress", str(path), "--error", "0.01", "--relative", "-o", str(path)],
+        ["quantize", str(path), "--bits", "8", "-o", str(tmp_path / "." / "bunny.ply")],
+        ["hausdorff", str(path), str(DATA / "bunny_res3.ply"), "--colors", str(path)],
+        ["plot", str(path), "-o", str(path)],
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"it is the input {path}" in err, err
+        assert path.read_bytes() == before
+
+
+def test_plot_and_colours_refuse_a_suffix_they_do_not_write(tmp_path, capsys):
+    """plot wrote PNG bytes into x.jpg and --colors a PLY into x.txt, exit 0."""
+    bunny = str(DATA / "bunny_res4.ply")
+    assert main(["plot", bunny, "-o", str(tmp_path / "x.jpg")]) == 2
+    assert "name it .png" in capsys.readouterr().err
+    argv = ["hausdorff", bunny, str(DATA / "bunny_res3.ply"), "--colors", str(tmp_path / "c.txt")]
+    assert main(argv) == 2
+    assert "name it .ply" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_hausdorff_on_a_file_it_cannot_read_prints_one_line(tmp_path, capsys):
+    """It printed "reading a", "reading b" and then the error: three lines."""
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 9\n")
+    for extra in ([], ["--json"]):
+        assert main(["hausdorff", str(DATA / "bunny_res4.ply"), str(bad), *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "bad.ply" in err, err
+
+
+def test_plan_table_names_the_unit_of_its_errors(capsys):
+    assert main(["plan", str(DATA / "bunny_res4.ply"), "--error", "0.01", "--relative"]) == 0
+    out = capsys.readouterr().out
+    assert all(f"{e} (mesh units)" in out for e in ("E_Q", "E_T", "E")), out
+
+
+def test_an_uncertified_answer_says_so(tmp_path, capsys):
+    """``--no-certify`` printed "met the error budget" where only the sampled distance (a
+    lower bound) was within it: the bunny at 0.001 S measured 1.57e-4 with Open3D against
+    a budget of 1.557e-4. The message now says it is not certified, and the table shows
+    no bound."""
+    argv = ["compress", str(DATA / "bunny_res4.ply"), "--error", "0.01", "--relative"]
+    out_path = str(tmp_path / "x.drc")
+    assert main([*argv, "--no-certify", "--quiet", "-o", out_path]) == 0
+    out = capsys.readouterr().out
+    assert "not certified" in out and "none (--no-certify)" in out, out
+    assert main([*argv, "--quiet", "-o", out_path]) == 0
+    out = capsys.readouterr().out
+    assert "not certified" not in out and "none" not in out, out
+
+
+def test_a_batch_into_its_own_input_folder_says_why_nothing_runs(tmp_path, capsys):
+    """It said "no mesh files in bb" of a folder holding two: the output folder's files
+    are never inputs, and that was the output folder."""
+    (tmp_path / "a.ply").write_bytes((DATA / "bunny_res4.ply").read_bytes())
+    (tmp_path / "b.ply").write_bytes((DATA / "bunny_res3.ply").read_bytes())
+    argv = ["batch", str(tmp_path), "-o", str(tmp_path), "--error", "0.01", "--relative"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "2 mesh files inside the output folder" in err and err.count("\n") == 1, err

@@ -474,3 +474,20 @@ def test_a_level_with_no_area_left_is_not_encoded():
     vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 2, 2], [3, 3, 3.0]])
     result = meshbits.compress((vertices, np.array([[0, 1, 2], [3, 4, 3]])), error=0.01)
     assert len(result.faces) >= 1
+
+
+def test_a_budget_given_as_text_is_told_how_the_api_takes_it():
+    mesh = load("bunny_res4.ply")
+    with pytest.raises(TypeError, match=r"parse_size\('20KB'\)"):
+        compress(mesh, size="20KB")
+    with pytest.raises(TypeError, match=r"parse_length"):
+        meshbits.compress_scene(DATA / "bunny_res4.ply", error="1mm")
+
+
+def test_an_uncertified_met_error_budget_says_it_is_a_lower_bound():
+    mesh = load("bunny_res4.ply")
+    sampled = compress(mesh, error=0.01, relative=True, certify=False)
+    certified = compress(mesh, error=0.01, relative=True)
+    assert sampled.met and sampled.error_upper is None
+    assert meshbits.results.SAMPLED_ONLY in sampled.message
+    assert certified.met and meshbits.results.SAMPLED_ONLY not in certified.message

@@ -212,3 +212,19 @@ def test_mesh_grid_invariants(validate):
     assert np.all(grid.mean_error <= grid.max_error)
     # The unquantized levels follow the same order.
     assert np.all(np.diff(grid.simplified_mean) > 0)
+
+
+def test_iso_error_labels_name_what_they_measure():
+    """On the grid-normalised surface (grid_size 1) the iso-error curves are E / S and
+    are labelled so (they read "E=1e-03" over a colour bar of E / S); with a grid size
+    they are lengths, "E="; iso-size labels say bits."""
+    import matplotlib.pyplot as plt
+
+    for grid_size, name in [(1.0, "E/S="), (15.2, "E=")]:
+        fig = plot.error_surface(10.0, grid_size=grid_size, resolution=32)
+        labels = [t.get_text() for t in fig.axes[0].texts]
+        plt.close(fig)
+        errors = [t for t in labels if t.startswith(("E=", "E/S="))]
+        assert errors and all(t.startswith(name) for t in errors), labels
+        sizes = [t for t in labels if t.startswith("F=")]
+        assert sizes and all(t.endswith(" bits") for t in sizes), labels

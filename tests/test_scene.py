@@ -23,6 +23,8 @@ from meshbits.cli import main
 from meshbits.gltf import load_document
 from meshbits.scene import compress_scene, normal_bits, uv_bits
 
+DATA = Path(__file__).parent / "data"
+
 WORLD_ERROR = 0.01
 
 
@@ -701,3 +703,85 @@ def test_a_scene_written_as_one_mesh_counts_what_it_leaves_out(tmp_path, capsys)
     report = json.loads(capsys.readouterr().out)
     assert report["budget_unit"] == "bits" and report["budget_bytes"] == 20_000
     assert "(m)" in report["message"] and "mesh units" not in report["message"]
+
+
+# --- from a new-user check (helper-22) ------------------------------------------------------
+
+
+def _split_gltf(glb: Path, out: Path) -> Path:
+    """The GLB written as a .gltf whose buffer (``data.bin``) and image (``checker.png``)
+    are files of their own."""
+    data = glb.read_bytes()
+    (length,) = struct.unpack_from("<I", data, 12)
+    doc = json.loads(data[20 : 20 + length])
+    (bin_length,) = struct.unpack_from("<I", data, 20 + length)
+    blob = data[28 + length : 28 + length + bin_length]
+    image = doc["images"][0]
+    view = doc["bufferViews"][image.pop("bufferView")]
+    start = view.get("byteOffset", 0)
+    (out.parent / "checker.png").write_bytes(blob[start : start + view["byteLength"]])
+    image["uri"] = "checker.png"
+    doc["buffers"][0]["uri"] = "data.bin"
+    (out.parent / "data.bin").write_bytes(blob)
+    out.write_text(json.dumps(doc))
+    return out
+
+
+def test_a_gltf_with_files_of_its_own_is_protected_and_counted_whole(tmp_path, capsys):
+    """``-o`` naming a .gltf input, or a .gltf output whose buffer file would replace the
+    input's, is refused; a batch counts the input's buffer and image in ``input_bytes``
+    whatever the output format (a .drc batch counted the .gltf's JSON alone: 7,107 bytes
+    of 287,327)."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    glb, _ = build_scene(tmp_path / "scene.glb")
+    path = _split_gltf(glb, folder / "scene.gltf")
+    parts = [folder / name for name in ("scene.gltf", "data.bin", "checker.png")]
+    before = [p.read_bytes() for p in parts]
+    argv = ["compress", str(path), "--error", "0.01", "--relative", "--quiet", "-o"]
+    assert main([*argv, str(path)]) == 2
+    assert "it is the input" in capsys.readouterr().err
+    assert main([*argv, str(folder / "data.gltf")]) == 2
+    err = capsys.readouterr().err
+    assert f"it is the input {folder / 'data.bin'} (a file {path} refers to)" in err, err
+    assert [p.read_bytes() for p in parts] == before
+    whole = sum(len(b) for b in before)
+    for fmt in ("drc", "gltf"):
+        out = tmp_path / f"out_{fmt}"
+        batch = ["batch", str(path), "-o", str(out), "--error", "0.01", "--relative"]
+        assert main([*batch, "--format", fmt, "--json"]) == 0
+        (row,) = json.loads(capsys.readouterr().out)["rows"]
+        assert row["input_bytes"] == whole, (fmt, row["input_bytes"], whole)
+
+
+def test_the_api_names_a_scenes_length_unit(tmp_path):
+    """compress_scene's message said "(mesh units)" for a glTF, whose unit is the meter,
+    and its report named no unit; a PLY's lengths are its own units. Without
+    certification a met error budget says it is met by a lower bound."""
+    glb, _ = build_scene(tmp_path / "scene.glb")
+    result = compress_scene(glb, error=0.01, relative=True)
+    assert result.length_unit == "m" == result.to_dict()["length_unit"]
+    assert "(m)" in result.message and "mesh units" not in result.message
+    assert meshbits.results.SAMPLED_ONLY not in result.message
+    ply = compress_scene(DATA / "bunny_res4.ply", error=0.01, relative=True, certify=False)
+    assert ply.length_unit == "mesh units" and "(mesh units)" in ply.message
+    assert ply.met and meshbits.results.SAMPLED_ONLY in ply.message
+
+
+def test_an_obj_written_as_one_mesh_counts_what_it_leaves_out(tmp_path, capsys):
+    """A textured OBJ to .drc left its material, texture and UVs out without the note a
+    glTF gets."""
+    v, f, uv, _ = uv_sphere(12, 24)
+    (tmp_path / "checker.png").write_bytes(_png(16, 16))
+    (tmp_path / "ball.mtl").write_text("newmtl skin\nmap_Kd checker.png\n")
+    lines = ["mtllib ball.mtl", "usemtl skin"]
+    lines += [f"v {x} {y} {z}" for x, y, z in v]
+    lines += [f"vt {a} {b}" for a, b in uv]
+    lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in f]
+    (tmp_path / "ball.obj").write_text("\n".join(lines) + "\n")
+    argv = ["compress", str(tmp_path / "ball.obj"), "--error", "0.01", "--relative"]
+    assert main([*argv, "-o", str(tmp_path / "ball.drc"), "--json"]) == 0
+    captured = capsys.readouterr()
+    away = json.loads(captured.out)["merged_away"]
+    assert away["materials"] == away["images"] == 1 and away["attributes"] == ["TEXCOORD_0"]
+    assert "note: ball.obj is written to .drc as one merged mesh" in captured.err

@@ -44,6 +44,7 @@ from typing import Any
 
 from . import _core
 from .errors import MeshbitsError
+from .gltf import asset_bytes, external_files
 from .io import write_atomic
 from .results import json_ready
 from .units import in_unit, length_unit_of
@@ -121,7 +122,8 @@ class BatchRow:
         The error budget in the file's length units (world units for a scene; a relative
         budget already multiplied by the size), or the size budget in bytes.
     input_bytes, output_bytes : int or None
-        Sizes of the input (for a ``.gltf``, with its buffers) and of the output (bytes).
+        Sizes of the input (for a ``.gltf``, with the buffers and images it names) and of
+        the output (bytes).
     bits : int or None
         B, bits per coordinate (for a scene, the largest of its primitives).
     vertices, faces : int or None
@@ -157,7 +159,7 @@ class BatchRow:
     traceback : str or None
         For an internal error, the traceback (to report the bug).
     merged_away : dict or None
-        For a glTF input written to ``drc`` or ``ply`` (one merged mesh of positions):
+        For a glTF or OBJ input written to ``drc`` or ``ply`` (one merged mesh of positions):
         what that leaves out, counted (materials, textures, images, skins, animations,
         morph targets, and the names of the vertex ``attributes`` other than positions;
         see :func:`meshbits.scene.omitted_by_merging`). None otherwise.
@@ -249,7 +251,8 @@ class BatchResult:
     not_reached : int
         Inputs not run because the batch was interrupted.
     ignored : dict
-        Files the search found that are not mesh files, counted by suffix.
+        Files the search found that are not mesh files, counted by suffix, and mesh files
+        inside the output folder (``"(in the output folder)"``: earlier outputs).
     duplicates : int
         Inputs listed more than once (run once).
     blank_manifest_rows : int
@@ -351,7 +354,8 @@ class Inputs:
     paths : tuple of Path
         Distinct input files (absolute), sorted for a folder or glob, in manifest order.
     ignored : dict
-        Files seen that are not mesh files, counted by suffix (``"(none)"``: no suffix).
+        Files seen that are not mesh files, counted by suffix (``"(none)"``: no suffix), and
+        mesh files inside the output folder (``"(in the output folder)"``).
     duplicates : int
         Paths listed more than once.
     blank : int
@@ -368,6 +372,11 @@ class Inputs:
 def _mesh_suffix(name: str) -> str | None:
     lower = name.lower()
     return next((s for s in MESH_SUFFIXES if lower.endswith(s)), None)
+
+
+#: The key of ``ignored`` that counts mesh files skipped because they are inside the
+#: output folder (earlier outputs, never inputs).
+IN_OUTPUT_FOLDER = "(in the output folder)"
 
 
 def _ignored_suffix(path: Path) -> str:
@@ -392,7 +401,7 @@ def find_inputs(source: str | os.PathLike[str], *, exclude: str | Path | None = 
     Parameters
     ----------
     source
-        A folder (searched recursively for ``.ply .ply.gz .obj .stl .off .glb .gltf``), a
+        A folder (searched recursively for ``.ply .ply.gz .obj .stl .off .glb .gltf .drc``), a
         glob pattern (``**`` matches sub-folders), a manifest (``.csv`` with a ``path``
         column, or ``.jsonl`` / ``.ndjson`` with a ``"path"`` key on each line; relative
         paths are relative to the manifest's folder), or one mesh file.
@@ -411,6 +420,8 @@ def find_inputs(source: str | os.PathLike[str], *, exclude: str | Path | None = 
 
     def keep(found: Path) -> bool:
         if skip is not None and _inside(found.resolve(), skip):
+            if _mesh_suffix(found.name) is not None:
+                ignored[IN_OUTPUT_FOLDER] += 1
             return False
         if _mesh_suffix(found.name) is None:
             ignored[_ignored_suffix(found)] += 1
@@ -499,25 +510,10 @@ def input_digest(path: str | Path) -> str:
                 digest.update(chunk)
 
     feed(path)
-    if path.suffix.lower() == ".gltf":
-        try:
-            document = json.loads(path.read_text(encoding="utf-8"))
-            uris = [
-                item.get("uri")
-                for key in ("buffers", "images")
-                for item in document.get(key, [])
-                if isinstance(item, dict)
-            ]
-        except (ValueError, AttributeError, TypeError):
-            uris = []  # unreadable: the task will say so; the file's bytes are hashed
-        for uri in uris:
-            if isinstance(uri, str) and not uri.startswith("data:"):
-                from urllib.parse import unquote
-
-                part = path.parent / unquote(uri)
-                if part.is_file():
-                    digest.update(b"\0" + uri.encode() + b"\0")
-                    feed(part)
+    for uri, part in external_files(path):
+        if part.is_file():
+            digest.update(b"\0" + uri.encode() + b"\0")
+            feed(part)
     return digest.hexdigest()
 
 
@@ -625,7 +621,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
     ``"unusable"``, anything else as ``"internal_error"`` with the traceback."""
     from .compress import compress
     from .io import load_mesh
-    from .scene import compress_scene, omitted_by_merging
+    from .scene import compress_scene, merged_away
 
     _set_threads(task.threads)
     start = time.perf_counter()
@@ -650,7 +646,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
         path = Path(task.path)
         if not path.is_file():
             raise FileNotFoundError(f"no such file: {path}")
-        row["input_bytes"] = path.stat().st_size
+        row["input_bytes"] = asset_bytes(path)
         row["input_sha256"] = input_digest(path)
         output = Path(task.output)
         output.parent.mkdir(parents=True, exist_ok=True)
@@ -679,8 +675,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
                 "error_upper": scene.world_error_upper,
             }
         else:
-            if path.suffix.lower() in (".glb", ".gltf"):
-                row["merged_away"] = omitted_by_merging(path)
+            row["merged_away"] = merged_away(path)
             vertices, faces = load_mesh(path)
             result = compress(
                 (vertices, faces),
@@ -1245,7 +1240,7 @@ def batch(
     Parameters
     ----------
     source
-        A folder (searched recursively for ``.ply .ply.gz .obj .stl .off .glb .gltf``), a
+        A folder (searched recursively for ``.ply .ply.gz .obj .stl .off .glb .gltf .drc``), a
         glob pattern, a manifest (``.csv`` with a ``path`` column or ``.jsonl`` with a
         ``"path"`` key; relative paths are relative to the manifest), or one mesh file.
     out_dir
@@ -1308,10 +1303,18 @@ def batch(
     out = _out_dir(Path(out_dir).expanduser())
     found = find_inputs(source, exclude=out)
     if not found.paths:
-        ignored = sum(found.ignored.values())
+        inside = found.ignored.get(IN_OUTPUT_FOLDER, 0)
+        ignored = sum(found.ignored.values()) - inside
         raise MeshbitsError(
             f"no mesh files in {os.fspath(source)} ({', '.join(MESH_SUFFIXES)})"
             + (f"; {ignored} other files ignored" if ignored else "")
+            + (
+                f"; {inside} mesh file{'' if inside == 1 else 's'} inside the output folder "
+                f"{os.fspath(out_dir)}, whose files are never inputs: write the outputs to "
+                "another folder"
+                if inside
+                else ""
+            )
         )
     names = _output_names(found, out.resolve(), options["format"])
     tasks = [

@@ -51,6 +51,7 @@ from .constants import (
 )
 from .encode import fixed_width_size_bits
 from .errors import MeshbitsError
+from .gltf import external_files
 from .hausdorff import hausdorff
 from .io import check_writable, example_mesh_path, load_mesh, save_mesh
 from .model import METHODS, plan_for_error, plan_for_size, plan_for_vertices
@@ -176,14 +177,39 @@ def _size_text(text: str) -> str:
     return text
 
 
-def _output(path: Path | None) -> Path | None:
-    """Check an output path before any work (``None``: nothing to write)."""
+def _output(path: Path | None, *inputs: Path | None) -> Path | None:
+    """Check an output path before any work (``None``: nothing to write): its folder
+    must be writable, and neither it nor a .gltf output's buffer file may be one of the
+    ``inputs`` or the files a .gltf input refers to (that would destroy the input)."""
     if path is None:
         return None
     try:
-        return check_writable(path)
+        check_writable(path)
     except MeshbitsError as err:
         raise UserError(str(err)) from None
+    written = [path]
+    if path.suffix.lower() == ".gltf":
+        written.append(path.with_name(f"{path.stem}.bin"))
+    for given in inputs:
+        if given is None:
+            continue
+        for read in [given, *(part for _, part in external_files(given))]:
+            for target in written:
+                if _same_file(target, read):
+                    what = "" if read == given else f" (a file {given} refers to)"
+                    raise UserError(
+                        f"cannot write {target}: it is the input {read}{what}; write the "
+                        "output elsewhere"
+                    )
+    return path
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name the same file (the same inode when both exist)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
 
 
 def _bits(largest: int) -> Callable[[str], int]:
@@ -422,13 +448,15 @@ def _budget_text(args: argparse.Namespace) -> str:
     if args.size is not None:
         return f"--size {args.size}"
     if args.error is not None:
-        return f"--error {args.error:g}" + (" --relative" if args.relative else "")
+        typed = getattr(args.error, "text", f"{args.error:g}")
+        return f"--error {typed}" + (" --relative" if args.relative else "")
     return f"--vertices {args.vertices}"
 
 
 def _run_compress(args: argparse.Namespace) -> int:
     from .compress import compress
-    from .scene import omitted_by_merging
+    from .scene import merged_away
+    from .search import ANSWER_REFINE_BUDGET
 
     _check_relative(args)
     _check_size_model(args)
@@ -448,14 +476,14 @@ def _run_compress(args: argparse.Namespace) -> int:
         raise UserError(
             f"--size needs a .glb, .gltf, .drc or .ply output; {suffix} sizes are not measured"
         )
-    _output(output)
+    _output(output, args.mesh, *(args.lods or []))
     for path in [args.mesh, *(args.lods or [])]:
         _input(path)
     _note_unit(args, args.mesh)
     unit = length_unit_of(args.mesh)
     mesh = load_mesh(args.mesh)
     lods = [load_mesh(path) for path in args.lods] if args.lods else None
-    away = omitted_by_merging(args.mesh) if _is_scene_file(args.mesh) else None
+    away = merged_away(args.mesh)
     if away is not None and not args.quiet:
         _note_merged_away(args.mesh, suffix, away)
 
@@ -521,10 +549,13 @@ def _run_compress(args: argparse.Namespace) -> int:
                     f"B = {result.bits}, V = {len(result.vertices)}, {len(result.faces)} faces",
                 ),
                 (f"measured error ({unit})", result.error),
-                *(
-                    [(f"certified error bound ({unit})", result.error_upper)]
+                (
+                    f"certified error bound ({unit})",
+                    result.error_upper
                     if result.error_upper is not None
-                    else []
+                    else "none (--no-certify)"
+                    if not args.certify
+                    else f"none (not within {ANSWER_REFINE_BUDGET:,} refinement points)",
                 ),
                 ("measured error / S", result.error / result.complexity.grid_size),
                 ("size", f"{result.size_bytes} bytes ({result.format})"),
@@ -581,7 +612,7 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
             "(.drc and .ply outputs); a scene's "
             "primitives are searched with meshoptimizer and their own sample counts" + merged
         )
-    _output(args.output)
+    _output(args.output, args.mesh)
     _input(args.mesh)
     _note_unit(args, args.mesh)
     unit = length_unit_of(args.mesh)
@@ -681,7 +712,7 @@ def _add_batch(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "input",
-        help="a folder (searched recursively for .ply .ply.gz .obj .stl .off .glb .gltf), "
+        help="a folder (searched recursively for .ply .ply.gz .obj .stl .off .glb .gltf .drc), "
         "a glob pattern (quote it; ** for sub-folders), or a manifest: .csv with a 'path' "
         'column or .jsonl with a "path" key (relative to the manifest)',
     )
@@ -1107,7 +1138,14 @@ def _run_plan(args: argparse.Namespace) -> int:
     print(f"  K = {k:.6g} (grid, {report['estimator']}), S = {grid_size:.6g} ({unit})")
     method = plan.method if plan.b0 is None else f"{plan.method}, B0 = {plan.b0:.4g}"
     print(f"  constraint: {plan.constraint} = {budget_text} (method {method})")
-    header = ("", "B (bits)", "V", "F (bits)", "E_Q", "E_T", "E", "E/S")
+    header = (
+        "",
+        "B (bits)",
+        "V",
+        "F (bits)",
+        *(f"{e} ({unit})" for e in ("E_Q", "E_T", "E")),
+        "E/S",
+    )
     rows = [
         (
             "continuous",
@@ -1331,18 +1369,21 @@ def _progress(message: object) -> None:
 
 
 def _run_hausdorff(args: argparse.Namespace) -> int:
-    _output(args.colors)
+    _output(args.colors, args.a, args.b)
+    if args.colors is not None and args.colors.suffix.lower() != ".ply":
+        raise UserError(
+            f"cannot write {args.colors}: --colors writes a PLY with vertex colours; name it .ply"
+        )
     if args.colors is not None:
         _need_matplotlib("--colors")
         _output(args.colors.with_name(args.colors.stem + "_colorbar.png"))
     for path in (args.a, args.b):
         _input(path)
-    meshes = {}
-    for name in ("a", "b"):
-        path = getattr(args, name)
-        if not args.quiet:
-            _progress(f"reading {path}")
-        meshes[name] = load_mesh(path)
+    meshes = {name: load_mesh(getattr(args, name)) for name in ("a", "b")}
+    if not args.quiet:
+        # After both reads: a file that cannot be read gets its one error line only.
+        for name, (vertices, faces) in meshes.items():
+            _progress(f"read {getattr(args, name)}: {len(vertices)} vertices, {len(faces)} faces")
     result = hausdorff(
         meshes["a"],
         meshes["b"],
@@ -1418,7 +1459,7 @@ def _add_quantize(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_quantize(args: argparse.Namespace) -> int:
-    _output(args.output)
+    _output(args.output, args.mesh)
     if args.output is not None and args.output.suffix.lower() not in _MESH_OUTPUTS:
         raise UserError(
             f"{args.output}: cannot write {args.output.suffix or 'a file without a suffix'}; "
@@ -1470,7 +1511,15 @@ def _write_colors(
 
     distances = ClosestPoints(b).query(a[0]).distances
     bar = args.colors.with_name(args.colors.stem + "_colorbar.png")
-    written = error_map(a, distances, args.colors, colorbar_path=bar, vmax=args.vmax)
+    unit = length_unit_of(args.a)
+    written = error_map(
+        a,
+        distances,
+        args.colors,
+        colorbar_path=bar,
+        vmax=args.vmax,
+        label=f"distance to {Path(args.b).name} ({unit})",
+    )
     if not args.quiet:
         _progress(f"wrote {written.path} and {written.colorbar_path}")
     return {
@@ -1522,7 +1571,9 @@ def _run_plot(args: argparse.Namespace) -> int:
 
     _need_matplotlib("meshbits plot")
     _check_size_model(args)
-    _output(args.output)
+    _output(args.output, args.mesh)
+    if args.output.suffix.lower() != ".png":
+        raise UserError(f"cannot write {args.output}: plot writes a PNG image; name it .png")
     vertices, faces = load_mesh(_input(args.mesh))
     k = shape_complexity(vertices, faces, estimator=args.estimator)
     n = welded_vertex_count((vertices, faces))

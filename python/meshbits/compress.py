@@ -40,7 +40,7 @@ from .hausdorff import Reference, default_samples
 from .io import write_atomic
 from .mesh import MeshLike, as_mesh
 from .quantize import precision_bits
-from .results import ArrayResult, ProgressCallback
+from .results import SAMPLED_ONLY, ArrayResult, ProgressCallback
 from .search import Iteration, Search, bound_answer, certify_answer, run_search
 from .simplify import METHODS, Simplifier, check_untangled, referenced_vertex_count
 
@@ -301,12 +301,7 @@ def compress(
     if method not in (*METHODS, "auto"):
         raise MeshbitsError(f"method must be 'auto' or one of {METHODS}, got {method!r}")
     value = {"size": size, "error": error, "vertices": vertices}[constraint]
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"the {constraint} budget must be a real number, got {value!r}")
-    try:
-        budget = float(value)
-    except OverflowError:  # an int beyond the float range
-        budget = math.inf
+    budget = budget_number(constraint, value)
     if not math.isfinite(budget) or budget <= 0:
         raise MeshbitsError(
             f"the {constraint} budget must be a positive finite number, got {value}"
@@ -389,6 +384,34 @@ def compress(
     )
 
 
+#: How the API takes each budget, for a budget given as text.
+_BUDGET_UNITS = {
+    "size": "bits (8 * 20_000 for 20 kB; meshbits.parse_size('20KB') converts)",
+    "error": "a length in the mesh's units (meshbits.parse_length('1mm') converts to meters)",
+    "vertices": "a vertex count",
+}
+
+
+def budget_number(constraint: str, value: Any) -> float:
+    """A budget given to the API as a float (an int beyond the float range is infinite,
+    and refused by the caller's range check).
+
+    Raises
+    ------
+    TypeError
+        If it is not a real number; text like ``"20KB"`` is told how the API takes it.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(
+            f"the {constraint} budget must be a real number, got {value!r}: the API takes "
+            f"{_BUDGET_UNITS[constraint]}"
+        )
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
 def _describe(constraint: str, amount: float) -> str:
     """A budget or measurement in the user's units: bytes for a size."""
     if constraint == "size":
@@ -416,7 +439,12 @@ def _message(constraint: str, budget: float, met: bool, record: Iteration, passe
         f"(mesh units), {record.measured_size_bits // 8} bytes"
     )
     if met:
-        return f"met the {constraint} budget of {_describe(constraint, budget)} with {outcome}"
+        uncertified = constraint == "error" and record.measured_error_upper is None
+        sampled = SAMPLED_ONLY if uncertified else ""
+        return (
+            f"met the {constraint} budget of {_describe(constraint, budget)} with {outcome}"
+            f"{sampled}"
+        )
     closest = {
         "size": "smallest output",
         "error": "most accurate output",

@@ -33,6 +33,8 @@ __all__ = [
     "MESHOPT_EXTENSIONS",
     "Document",
     "PrimitiveData",
+    "asset_bytes",
+    "external_files",
     "image_size",
     "load_document",
     "load_gltf_document",
@@ -541,6 +543,38 @@ def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
         return tri
     i = np.arange(1, len(indices) - 1)
     return np.stack([np.full(len(i), indices[0]), indices[i], indices[i + 1]], axis=1)
+
+
+def external_files(path: str | Path) -> list[tuple[str, Path]]:
+    """The files a ``.gltf`` names by relative URI (its buffers, then its images), as
+    ``(uri, path)``, whether they exist or not; none for any other file, or for one that
+    cannot be read as JSON (its reader says why when it is loaded)."""
+    path = Path(path)
+    if path.suffix.lower() != ".gltf":
+        return []
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+        uris = [
+            item.get("uri")
+            for key in ("buffers", "images")
+            for item in document.get(key, [])
+            if isinstance(item, dict)
+        ]
+    except (OSError, ValueError, AttributeError, TypeError):
+        return []
+    return [
+        (uri, path.parent / _unquote(uri))
+        for uri in uris
+        if isinstance(uri, str) and uri and not uri.startswith("data:") and "://" not in uri
+    ]
+
+
+def asset_bytes(path: str | Path) -> int:
+    """A file's bytes; for a ``.gltf``, with the buffers and images it names by relative
+    URI (the asset's whole size)."""
+    path = Path(path)
+    parts = [part for _, part in external_files(path) if part.is_file()]
+    return path.stat().st_size + sum(part.stat().st_size for part in parts)
 
 
 def _unquote(uri: str) -> str:

@@ -151,7 +151,8 @@ def error_surface(
         else:  # the curve turns below the top edge left of the column: label it there
             log_v = np.interp(-np.log(level), -np.log(error_row), np.log(v))
             error_label_at.append((float(np.exp(log_v)), b_top_labels))
-    ax.clabel(lines, fmt=lambda x: f"E={x:.0e}", fontsize=7, manual=error_label_at)
+    error_name = "E/S" if grid_size == 1.0 else "E"
+    ax.clabel(lines, fmt=lambda x: f"{error_name}={x:.0e}", fontsize=7, manual=error_label_at)
     f_levels = _decades(size, halves=False)
     size_lines = ax.contour(
         vv, bb, size, levels=f_levels, colors="white", linewidths=0.9, linestyles="dashed"
@@ -163,7 +164,7 @@ def error_surface(
     size_label_at = [(level / bits_per_vertex, b_size_labels) for level in size_lines.levels]
     ax.clabel(
         size_lines,
-        fmt=lambda x: f"F={x:.0e} b",
+        fmt=lambda x: f"F={x:.0e} bits",
         fontsize=7,
         colors="white",
         manual=[(x, y) for x, y in size_label_at if v_lo < x < v_hi],

@@ -16,7 +16,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["ArrayResult", "Progress", "ProgressCallback", "json_ready"]
+__all__ = ["SAMPLED_ONLY", "ArrayResult", "Progress", "ProgressCallback", "json_ready"]
+
+#: Appended to the message of an error budget met without certification: a sampled
+#: distance is a lower bound on the error, so the true error may still exceed the budget.
+SAMPLED_ONLY = (
+    " (not certified: by its sampled distance, a lower bound, so the true error may "
+    "exceed the budget)"
+)
 
 
 def _equal(a: Any, b: Any) -> bool:

@@ -28,6 +28,7 @@ import numpy as np
 
 from . import _core
 from .complexity import shape_complexity
+from .compress import budget_number
 from .constants import (
     ANSWER_RELATIVE_TOLERANCE,
     CERTIFY_TOLERANCE,
@@ -43,6 +44,7 @@ from .gltf import (
     WIDTH_TYPES,
     Document,
     PrimitiveData,
+    asset_bytes,
     finite_or_fail,
     image_size,
     largest_scale,
@@ -51,7 +53,7 @@ from .gltf import (
 from .hausdorff import Reference, default_samples
 from .io import write_atomic
 from .quantize import precision_bits
-from .results import Progress, ProgressCallback
+from .results import SAMPLED_ONLY, Progress, ProgressCallback
 from .search import (
     BASE_FACES,
     Attributes,
@@ -642,6 +644,9 @@ class SceneResult:
     world_error_upper : float or None
         The largest certified bound of any primitive (world units); None with
         ``certify=False``.
+    length_unit : str
+        The unit of the lengths: ``"m"`` for a glTF input (its unit is the meter), else
+        ``"mesh units"`` (the file's own coordinates).
     size_bytes : int
         The written file (GLB; for ``.gltf``, the JSON plus its buffer).
     input_bytes : int
@@ -661,6 +666,7 @@ class SceneResult:
     seconds: float
     files: tuple[str, ...] = ()
     world_error_upper: float | None = None
+    length_unit: str = "mesh units"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready; a size budget is also given in bytes (``budget_bytes``), as
@@ -831,7 +837,7 @@ def compress_scene(
         raise MeshbitsError(f"give exactly one of error, size (got {given or 'none'})")
     if codec not in CODECS:
         raise MeshbitsError(f"codec must be one of {CODECS}, got {codec!r}")
-    budget = float(error if error is not None else size)  # type: ignore[arg-type]
+    budget = budget_number(given[0], error if error is not None else size)
     if not (math.isfinite(budget) and budget > 0):
         raise MeshbitsError(f"the {given[0]} budget must be a positive finite number, got {budget}")
     if not (0 < normal_tolerance < 90):
@@ -849,7 +855,7 @@ def compress_scene(
         document = source
     else:
         document = load_document(source)
-        input_bytes = _file_bytes(Path(source), document)
+        input_bytes = asset_bytes(source)
 
     def say(line: str) -> None:
         if progress is not None:
@@ -912,9 +918,15 @@ def compress_scene(
 
         fixed = _fixed_bytes(document, jobs)
         if budget / 8 - fixed <= 0:
+            images = len(document.json.get("images", []))
+            parts = (
+                f"{images} image{'' if images == 1 else 's'}, its JSON and other data"
+                if images
+                else "its JSON and other data"
+            )
             raise MeshbitsError(
-                f"the size budget ({budget / 8:.6g} bytes) does not hold the scene's images "
-                f"and other data ({fixed} bytes)"
+                f"the size budget ({budget / 8:.6g} bytes) is less than what the output keeps "
+                f"whatever its geometry: {parts} ({fixed} bytes)"
             )
         if len(jobs) == 1:
             outcomes, target_error = _size_one(
@@ -996,17 +1008,18 @@ def compress_scene(
     bound = "" if world_error_upper is None else f" (certified <= {world_error_upper:.4g})"
     if given[0] == "error":
         met = all(r.met for r in reports)
+        sampled = "" if certify or not met else SAMPLED_ONLY
         message = (
             f"{'met' if met else 'could not meet'} the world-space error budget of "
-            f"{budget:.6g}: largest error {world_error:.4g}{bound} (mesh units), "
-            f"{size_bytes} bytes"
+            f"{budget:.6g} ({unit}): largest error {world_error:.4g}{bound} ({unit}), "
+            f"{size_bytes} bytes{sampled}"
         )
     else:
         met = size_bytes <= budget / 8
         message = (
             f"{'met' if met else 'could not meet'} the size budget of {budget / 8:.6g} bytes: "
             f"{size_bytes} bytes, largest world-space error {world_error:.4g}{bound} "
-            "(mesh units)"
+            f"({unit})"
         )
     return SceneResult(
         constraint=given[0],
@@ -1021,6 +1034,7 @@ def compress_scene(
         seconds=time.perf_counter() - start,
         files=tuple(files),
         world_error_upper=world_error_upper,
+        length_unit=unit,
     )
 
 
@@ -1082,13 +1096,6 @@ def _shared_grids(
                 uppers[i] = float(h.upper) if h.upper is not None else None
             encodings[i] = encoding
     return encodings, measured, uppers
-
-
-def _file_bytes(path: Path, document: Document) -> int:
-    total = path.stat().st_size
-    if path.suffix.lower() == ".gltf":
-        total += sum(len(b) for b in document.buffers)
-    return total
 
 
 def _decoded_primitives(document: Document, where: str) -> list[PrimitiveData]:
@@ -1496,9 +1503,31 @@ def _apply_dequantization(
             node["scale"] = [float(s) * step for s in node.get("scale", [1.0, 1.0, 1.0])]
 
 
+#: Inputs that can hold more than positions and faces (materials, textures, UVs, normals,
+#: a node hierarchy): a merged-mesh output says what it leaves out of them
+#: (:func:`omitted_by_merging`). An OBJ's MTL materials and textures count.
+RICH_INPUT_SUFFIXES = (".glb", ".gltf", ".obj")
+
+
+def merged_away(path: str | Path) -> dict[str, Any] | None:
+    """:func:`omitted_by_merging` for an input of :data:`RICH_INPUT_SUFFIXES`; None for
+    another file, and for an OBJ whose materials cannot be read as a scene (its mesh
+    was read: trimesh's glTF export of it failed, so nothing of it is known to be lost)."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in RICH_INPUT_SUFFIXES:
+        return None
+    try:
+        return omitted_by_merging(path)
+    except MeshbitsError:
+        if suffix == ".obj":
+            return None
+        raise
+
+
 def omitted_by_merging(path: str | Path) -> dict[str, Any]:
-    """What writing a glTF scene as one merged mesh of positions (what
-    :func:`meshbits.load_mesh` reads, written to ``.drc``, ``.ply``...) leaves out, counted:
+    """What writing a glTF scene (or an OBJ, read as one) as one merged mesh of positions
+    (what :func:`meshbits.load_mesh` reads, written to ``.drc``, ``.ply``...) leaves out,
+    counted:
     materials, textures, images, skins, animations and morph targets (those present), and
     ``attributes``, the names of the vertex attributes other than ``POSITION``. The node
     hierarchy is flattened: every instance is placed in world space."""
@@ -1626,7 +1655,7 @@ def scene_info(path: str | Path) -> dict[str, Any]:
         )
     return {
         "file": str(path),
-        "bytes": _file_bytes(Path(path), document),
+        "bytes": asset_bytes(path),
         "meshes": meshes,
         "nodes": len(j.get("nodes", [])),
         "scenes": len(j.get("scenes", [])),
