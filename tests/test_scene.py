@@ -511,16 +511,21 @@ def test_attribute_bits_follow_their_tolerance():
     assert normal_bits(n, 1.0) <= 8 < normal_bits(n, 0.1)
 
 
-def test_obj_with_mtl_and_texture_comes_out_textured(tmp_path):
-    v, f, uv, _ = uv_sphere(24, 48)
-    png = _png(64, 64)
-    (tmp_path / "checker.png").write_bytes(png)
-    (tmp_path / "ball.mtl").write_text("newmtl skin\nmap_Kd checker.png\n")
+def textured_obj(folder: Path, rings: int, segments: int, texels: int) -> Path:
+    """``ball.obj``: a UV sphere with an MTL material whose texture is a PNG beside it."""
+    v, f, uv, _ = uv_sphere(rings, segments)
+    (folder / "checker.png").write_bytes(_png(texels, texels))
+    (folder / "ball.mtl").write_text("newmtl skin\nmap_Kd checker.png\n")
     lines = ["mtllib ball.mtl", "usemtl skin"]
     lines += [f"v {x} {y} {z}" for x, y, z in v]
     lines += [f"vt {a} {b}" for a, b in uv]
     lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in f]
-    (tmp_path / "ball.obj").write_text("\n".join(lines) + "\n")
+    (folder / "ball.obj").write_text("\n".join(lines) + "\n")
+    return folder / "ball.obj"
+
+
+def test_obj_with_mtl_and_texture_comes_out_textured(tmp_path):
+    textured_obj(tmp_path, 24, 48, 64)
     out = tmp_path / "ball.glb"
     result = compress_scene(tmp_path / "ball.obj", error=0.01, relative=True, output=out)
     assert result.met
@@ -771,15 +776,7 @@ def test_the_api_names_a_scenes_length_unit(tmp_path):
 def test_an_obj_written_as_one_mesh_counts_what_it_leaves_out(tmp_path, capsys):
     """A textured OBJ to .drc left its material, texture and UVs out without the note a
     glTF gets."""
-    v, f, uv, _ = uv_sphere(12, 24)
-    (tmp_path / "checker.png").write_bytes(_png(16, 16))
-    (tmp_path / "ball.mtl").write_text("newmtl skin\nmap_Kd checker.png\n")
-    lines = ["mtllib ball.mtl", "usemtl skin"]
-    lines += [f"v {x} {y} {z}" for x, y, z in v]
-    lines += [f"vt {a} {b}" for a, b in uv]
-    lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in f]
-    (tmp_path / "ball.obj").write_text("\n".join(lines) + "\n")
-    argv = ["compress", str(tmp_path / "ball.obj"), "--error", "0.01", "--relative"]
+    argv = ["compress", str(textured_obj(tmp_path, 12, 24, 16)), "--error", "0.01", "--relative"]
     assert main([*argv, "-o", str(tmp_path / "ball.drc"), "--json"]) == 0
     captured = capsys.readouterr()
     away = json.loads(captured.out)["merged_away"]
