@@ -453,10 +453,22 @@ def _budget_text(args: argparse.Namespace) -> str:
     return f"--vertices {args.vertices}"
 
 
+def _bound_text(result: Any, certify: bool) -> float | str:
+    """A compress result's certified error bound, or why it has none."""
+    from .search import ANSWER_REFINE_BUDGET
+
+    if result.error_upper is not None:
+        return float(result.error_upper)
+    if not certify:
+        return "none (--no-certify)"
+    if result.constraint == "error":
+        return "none (an error budget's answer is certified once met; this one was not)"
+    return f"none (it did not converge within {ANSWER_REFINE_BUDGET:,} refinement points)"
+
+
 def _run_compress(args: argparse.Namespace) -> int:
     from .compress import compress
     from .scene import merged_away
-    from .search import ANSWER_REFINE_BUDGET
 
     _check_relative(args)
     _check_size_model(args)
@@ -549,14 +561,7 @@ def _run_compress(args: argparse.Namespace) -> int:
                     f"B = {result.bits}, V = {len(result.vertices)}, {len(result.faces)} faces",
                 ),
                 (f"measured error ({unit})", result.error),
-                (
-                    f"certified error bound ({unit})",
-                    result.error_upper
-                    if result.error_upper is not None
-                    else "none (--no-certify)"
-                    if not args.certify
-                    else f"none (not within {ANSWER_REFINE_BUDGET:,} refinement points)",
-                ),
+                (f"certified error bound ({unit})", _bound_text(result, args.certify)),
                 ("measured error / S", result.error / result.complexity.grid_size),
                 ("size", f"{result.size_bytes} bytes ({result.format})"),
                 ("passes", len(result.iterations)),
