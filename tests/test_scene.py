@@ -782,3 +782,15 @@ def test_an_obj_written_as_one_mesh_counts_what_it_leaves_out(tmp_path, capsys):
     away = json.loads(captured.out)["merged_away"]
     assert away["materials"] == away["images"] == 1 and away["attributes"] == ["TEXCOORD_0"]
     assert "note: ball.obj is written to .drc as one merged mesh" in captured.err
+
+
+def test_the_api_refuses_an_output_that_is_its_input(tmp_path):
+    """``compress_scene(x, output=x)`` replaced the input (the CLI refused it already)."""
+    glb, _ = build_scene(tmp_path / "scene.glb")
+    before = glb.read_bytes()
+    link = tmp_path / "link.glb"
+    link.symlink_to(glb)
+    for output in (glb, link):
+        with pytest.raises(meshbits.MeshbitsError, match="it is the input"):
+            compress_scene(glb, error=0.01, relative=True, output=output)
+    assert glb.read_bytes() == before

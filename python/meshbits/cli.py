@@ -51,9 +51,8 @@ from .constants import (
 )
 from .encode import fixed_width_size_bits
 from .errors import MeshbitsError
-from .gltf import external_files
 from .hausdorff import hausdorff
-from .io import check_writable, example_mesh_path, load_mesh, save_mesh
+from .io import check_not_an_input, check_writable, example_mesh_path, load_mesh, save_mesh
 from .model import METHODS, plan_for_error, plan_for_size, plan_for_vertices
 from .quantize import cluster
 from .results import Progress, json_ready
@@ -187,29 +186,10 @@ def _output(path: Path | None, *inputs: Path | None) -> Path | None:
         check_writable(path)
     except MeshbitsError as err:
         raise UserError(str(err)) from None
-    written = [path]
-    if path.suffix.lower() == ".gltf":
-        written.append(path.with_name(f"{path.stem}.bin"))
-    for given in inputs:
-        if given is None:
-            continue
-        for read in [given, *(part for _, part in external_files(given))]:
-            for target in written:
-                if _same_file(target, read):
-                    what = "" if read == given else f" (a file {given} refers to)"
-                    raise UserError(
-                        f"cannot write {target}: it is the input {read}{what}; write the "
-                        "output elsewhere"
-                    )
-    return path
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    """Whether two paths name the same file (the same inode when both exist)."""
     try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return a.resolve() == b.resolve()
+        return check_not_an_input(path, *inputs)
+    except MeshbitsError as err:
+        raise UserError(str(err)) from None
 
 
 def _bits(largest: int) -> Callable[[str], int]:

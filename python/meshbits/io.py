@@ -34,6 +34,7 @@ from .mesh import as_mesh
 __all__ = [
     "GZIP_MAX_RATIO",
     "GZIP_MIN_LIMIT",
+    "check_not_an_input",
     "check_writable",
     "example_mesh_path",
     "load_mesh",
@@ -222,6 +223,40 @@ def _gunzip(path: Path) -> _io.BytesIO:
         raise MeshFileError("the gzip data is truncated") from None
     out.seek(0)
     return out
+
+
+def check_not_an_input(path: str | Path, *inputs: str | Path | None) -> Path:
+    """Refuse an output that would replace an input: ``path`` itself or, for a ``.gltf``
+    output, the buffer file written beside it (``out.bin``), when it is one of
+    ``inputs`` or a file a ``.gltf`` input names (its buffers and images); the same file
+    by any path (a symlink, a hard link) counts."""
+    from .gltf import external_files
+
+    path = Path(path)
+    written = [path]
+    if path.suffix.lower() == ".gltf":
+        written.append(path.with_name(f"{path.stem}.bin"))
+    for given in inputs:
+        if given is None:
+            continue
+        given = Path(given)
+        for read in [given, *(part for _, part in external_files(given))]:
+            for target in written:
+                if _same_file(target, read):
+                    what = "" if read == given else f" (a file {given} refers to)"
+                    raise MeshbitsError(
+                        f"cannot write {target}: it is the input {read}{what}; write the "
+                        "output elsewhere"
+                    )
+    return path
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name the same file (the same inode when both exist)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
 
 
 def check_writable(path: str | Path) -> Path:

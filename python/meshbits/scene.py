@@ -51,7 +51,7 @@ from .gltf import (
     load_document,
 )
 from .hausdorff import Reference, default_samples
-from .io import write_atomic
+from .io import check_not_an_input, write_atomic
 from .quantize import precision_bits
 from .results import SAMPLED_ONLY, Progress, ProgressCallback
 from .search import (
@@ -844,6 +844,8 @@ def compress_scene(
         raise MeshbitsError(f"normal_tolerance must be in (0, 90) degrees, got {normal_tolerance}")
     if output is not None and Path(output).suffix.lower() not in (".glb", ".gltf"):
         raise MeshbitsError(f"a scene is written as .glb or .gltf, not {Path(output).suffix}")
+    if output is not None and not isinstance(source, Document):
+        check_not_an_input(output, source)
     input_bytes = 0
     if not isinstance(source, (str, Path, Document)):
         raise TypeError(
