@@ -48,13 +48,14 @@ from typing import Any
 
 import numpy as np
 import trimesh
+from _shared import SHARED as SHARED_ROOT
 
 import meshbits
 from meshbits.batch import BatchResult, _cores
 from meshbits.threads import get_num_threads, set_num_threads
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "meshes"
+SHARED = SHARED_ROOT / "meshes"
 OUT = ROOT / "benches" / "out" / "batch"
 SOURCES = (
     "bunny_res3",

@@ -18,12 +18,13 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from _shared import SHARED as SHARED_ROOT
 
 import meshbits
 from meshbits.encode import encode
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "meshes"
+SHARED = SHARED_ROOT / "meshes"
 
 
 def load(name: str) -> tuple[np.ndarray, np.ndarray] | None:

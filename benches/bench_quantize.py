@@ -34,11 +34,12 @@ from typing import Any
 
 import numpy as np
 import trimesh
+from _shared import SHARED as SHARED_ROOT
 
 import meshbits
 
 ROOT = Path(__file__).resolve().parent.parent
-SHARED = ROOT.parent / "shared" / "meshes"
+SHARED = SHARED_ROOT / "meshes"
 
 
 def best_time(run: Callable[..., Any], args: tuple, repeats: int) -> tuple[float, float, Any]:

@@ -38,13 +38,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from _shared import import_refs
 
 import meshbits
 
 ROOT = Path(__file__).resolve().parents[1]
-REFS = ROOT.parent / "shared" / "bench-refs"
-sys.path.insert(0, str(REFS))
-import refs  # noqa: E402
+refs = import_refs()
 
 # Run in a fresh process: the peak resident set K adds on top of its loaded input.
 PEAK = """

@@ -23,7 +23,6 @@ import argparse
 import json
 import struct
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -31,13 +30,12 @@ from pathlib import Path
 import DracoPy
 import numpy as np
 import trimesh
+from _shared import SHARED, import_refs
 
 from meshbits.gltf import load_document
 from meshbits.scene import compress_scene
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared"
-sys.path.insert(0, str(SHARED / "bench-refs"))
 
 PLACEMENTS = [
     ("bunny", [[2.0, 0, 0, 0], [0, 2.0, 0, 0], [0, 0, 2.0, 0], [0, 0, 0, 1]]),
@@ -124,7 +122,7 @@ def world_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
 def world_error(original: tuple, path: Path, gltfpack: str | None = None) -> float:
     """Open3D's symmetric Hausdorff distance between the input and a written scene, the
     scene decoded without meshbits (meshopt files by gltfpack -noq first)."""
-    from refs import hausdorff_open3d
+    hausdorff_open3d = import_refs().hausdorff_open3d
 
     if gltfpack is not None:
         plain = path.with_name(path.stem + "_plain.glb")

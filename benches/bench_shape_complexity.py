@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from _shared import SHARED as SHARED_ROOT
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
@@ -26,7 +27,7 @@ import reference  # noqa: E402
 
 import meshbits  # noqa: E402
 
-SHARED = ROOT.parent / "shared" / "meshes"
+SHARED = SHARED_ROOT / "meshes"
 
 
 def best_time(fn, repeat: int, *args) -> float:

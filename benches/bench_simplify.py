@@ -23,11 +23,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from _shared import SHARED as SHARED_ROOT
 
 import meshbits
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "meshes"
+SHARED = SHARED_ROOT / "meshes"
 
 #: (mesh, meshoptimizer error targets relative to the bounding-box diagonal S); the
 #: dragon's are about those compress's search asks for at 0.001 S.

@@ -39,12 +39,12 @@ import gzip
 import json
 import math
 import statistics
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import trimesh
+from _shared import SHARED, import_refs
 
 import meshbits
 from meshbits.compress import MIN_SAMPLES
@@ -54,9 +54,7 @@ from meshbits.hausdorff import default_samples
 from meshbits.quantize import cube_grid
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared"
 OUT = ROOT / "benches" / "out" / "frontier"
-sys.path.insert(0, str(SHARED / "bench-refs"))
 
 MESHES = ["bunny", "horse", "hand", "fandisk", "armadillo", "nefertiti"]
 ERROR_BUDGETS = [0.005, 0.002, 0.001, 0.0005]
@@ -96,7 +94,7 @@ def open3d_error(original: tuple[np.ndarray, np.ndarray], decoded: tuple) -> flo
     """The independent measurement (length): Open3D, every vertex plus 300,000 area
     samples of each mesh. Unreferenced vertices are left out first: they are not on
     the surface (the bunny has 1,113, which Draco drops)."""
-    from refs import hausdorff_open3d
+    hausdorff_open3d = import_refs().hausdorff_open3d
 
     a, b = _referenced(original), _referenced(decoded)
     return hausdorff_open3d(*a, *b, samples=OPEN3D_SAMPLES, seed=1)

@@ -33,12 +33,13 @@ from typing import Any
 
 import numpy as np
 import trimesh
+from _shared import SHARED as SHARED_ROOT
 
 import meshbits
 from meshbits import model
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "meshes"
+SHARED = SHARED_ROOT / "meshes"
 TESTS = ROOT / "tests" / "data"
 DOCS = ROOT / "docs"
 

@@ -151,6 +151,7 @@ def test_cli_hausdorff_colors(tmp_path, capsys):
 def validate():
     if not BENCH.is_file():
         pytest.skip("benches/validate_paper.py is not in this checkout")
+    sys.path.insert(0, str(BENCH.parent))  # the bench imports benches/_shared.py
     spec = importlib.util.spec_from_file_location("validate_paper", BENCH)
     module = importlib.util.module_from_spec(spec)
     sys.modules["validate_paper"] = module
