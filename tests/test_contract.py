@@ -156,8 +156,11 @@ def test_two_gltf_outputs_in_one_folder_keep_their_own_buffers(tmp_path, capsys)
         "second.bin",
         "second.gltf",
     ]
-    counts = [len(trimesh.load(p, force="mesh", process=False).vertices) for p in (first, second)]
-    assert counts == expected
+    counts = [
+        len(np.unique(trimesh.load(p, force="mesh", process=False).vertices, axis=0))
+        for p in (first, second)
+    ]
+    assert counts == expected  # V counts positions once (Draco splits some vertices)
 
 
 def test_write_atomic_gives_new_files_the_usual_mode_and_keeps_an_old_files(tmp_path):

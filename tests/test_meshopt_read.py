@@ -209,23 +209,22 @@ def written(tmp_path_factory):
     folder = tmp_path_factory.mktemp("meshopt")
     source = textured_scene(folder / "scene.glb")
     calls = []
-    original = scene._write
+    original = scene._rebuild
 
-    def recording(document, jobs, encodings, codec, output):
-        if output is not None:
-            calls.append((document, jobs, encodings))
-        return original(document, jobs, encodings, codec, output)
+    def recording(document, jobs, encodings, codec):
+        calls.append((document, jobs, encodings))
+        return original(document, jobs, encodings, codec)
 
     out = folder / "scene_meshopt.glb"
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(scene, "_write", recording)
+        patch.setattr(scene, "_rebuild", recording)
         result = meshbits.compress_scene(
             source, error=ERROR, relative=True, codec="meshopt", output=out
         )
     assert result.met and len(calls) == 1
     document, jobs, encodings = calls[0]
     gltf = folder / "scene_meshopt.gltf"
-    original(document, jobs, encodings, "meshopt", gltf)
+    scene._emit(*original(document, jobs, encodings, "meshopt"), gltf)
     return {
         "source": source,
         "glb": out,
@@ -257,7 +256,8 @@ def test_every_stream_decodes_as_the_meshopt_package_decodes_it(written, form):
     doc, buffers = read_independently(written[form])
     document = load_document(written[form])
     compressed = [i for i, v in enumerate(doc["bufferViews"]) if "extensions" in v]
-    assert len(compressed) == 11 and set(document.decoded_views) == set(compressed)
+    # Spot's two meshes share their accessors: one set of streams serves both.
+    assert len(compressed) == 7 and set(document.decoded_views) == set(compressed)
     for i in compressed:
         assert bytes(document.view_bytes(i)) == view_data(doc, buffers, i), f"bufferView {i}"
 
@@ -470,7 +470,7 @@ def test_the_extension_object_is_checked(written, tmp_path):
 @settings(
     max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
-@given(where=st.floats(0, 1, exclude_max=True), flip=st.integers(1, 255), stream=st.integers(0, 10))
+@given(where=st.floats(0, 1, exclude_max=True), flip=st.integers(1, 255), stream=st.integers(0, 6))
 def test_damage_anywhere_in_a_stream_is_read_or_refused(written, tmp_path, where, flip, stream):
     """A stream damaged anywhere decodes to something (meshoptimizer's decoders are safe on
     any input) or is refused with a MeshbitsError: never a crash, never another error."""
@@ -504,7 +504,7 @@ def test_draco_files_read_as_before(written, tmp_path):
         decoded = DracoPy.decode(buffers[0][start : start + view["byteLength"]])
         np.testing.assert_array_equal(data.positions, np.asarray(decoded.points, dtype=np.float64))
     vertices, faces = meshbits.load_mesh(out)
-    assert len(faces) == sum(r.faces for r in result.primitives)
+    assert len(faces) == sum(r.faces * (1 + len(r.shared_with)) for r in result.primitives)
     assert meshbits.hausdorff(
         meshbits.load_mesh(written["source"]), (vertices, faces)
     ).distance <= (result.world_error_upper)
@@ -519,8 +519,18 @@ def test_a_draco_primitive_that_does_not_decode_is_refused(written, tmp_path, ca
     doc, buffers = read_independently(out)
     draco = doc["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]
     view = doc["bufferViews"][draco["bufferView"]]
-    blob = bytearray(buffers[0])
-    blob[view.get("byteOffset", 0) + view["byteLength"] // 2] ^= 0xFF
+    import DracoPy
+
+    start, length = view.get("byteOffset", 0), view["byteLength"]
+    for where in range(length // 2, length):
+        blob = bytearray(buffers[0])
+        blob[start + where] ^= 0xFF
+        try:
+            DracoPy.decode(bytes(blob[start : start + length]))
+        except Exception:
+            break  # DracoPy refuses it: a byte that breaks the data
+    else:
+        pytest.fail("no byte of the second half breaks the Draco data")
     flipped = tmp_path / "flipped.glb"
     flipped.write_bytes(glb_bytes(doc, bytes(blob)))
     with pytest.raises(meshbits.MeshbitsError, match="Draco"):

@@ -7,16 +7,13 @@ from __future__ import annotations
 
 import json
 import struct
-import warnings
 import zlib
 from pathlib import Path
 
-import DracoPy
 import numpy as np
-import pygltflib
 import pytest
 import trimesh
-from conftest import GLTF_DTYPES, GLTF_WIDTHS
+from independent import decode_primitive, read_glb, world_matrices
 
 import meshbits
 from meshbits.cli import main
@@ -259,106 +256,7 @@ def scene_file(tmp_path_factory) -> tuple[Path, dict]:
     return build_scene(tmp_path_factory.mktemp("scene") / "scene.glb")
 
 
-# --- reading outputs back, without meshbits ------------------------------------------------
-
-
-def _accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
-    spec = doc["accessors"][index]
-    dtype = GLTF_DTYPES[spec["componentType"]]
-    width = GLTF_WIDTHS[spec["type"]]
-    view = doc["bufferViews"][spec["bufferView"]]
-    ext = (view.get("extensions") or {}).get("EXT_meshopt_compression")
-    if ext:
-        import meshopt
-
-        data = blob[ext["byteOffset"] : ext["byteOffset"] + ext["byteLength"]]
-        if ext["mode"] == "TRIANGLES":
-            return np.asarray(
-                meshopt.decode_gltf_buffer(data, ext["count"], ext["byteStride"], "TRIANGLES")
-            ).reshape(-1, 1)
-        rows = np.asarray(
-            meshopt.decode_gltf_buffer(
-                data, ext["count"], ext["byteStride"], "ATTRIBUTES", ext.get("filter", "NONE")
-            )
-        )
-        values = np.frombuffer(rows.tobytes(), dtype=dtype).reshape(ext["count"], -1)[:, :width]
-    else:
-        start = view.get("byteOffset", 0) + spec.get("byteOffset", 0)
-        stride = view.get("byteStride") or np.dtype(dtype).itemsize * width
-        raw = np.frombuffer(blob, dtype=np.uint8, count=stride * spec["count"], offset=start)
-        values = (
-            raw.reshape(spec["count"], stride)[:, : np.dtype(dtype).itemsize * width]
-            .copy()
-            .view(dtype)
-            .reshape(spec["count"], width)
-        )
-    if spec.get("normalized"):
-        scale = {np.int8: 127, np.uint8: 255, np.int16: 32767, np.uint16: 65535}[dtype]
-        return np.maximum(values / scale, -1.0)
-    return values.astype(np.float64) if dtype == np.float32 else values
-
-
-def decode_primitive(doc: dict, blob: bytes, prim: dict) -> dict[str, np.ndarray]:
-    """A primitive's attributes and ``indices``, decoded with DracoPy or the meshopt
-    package."""
-    draco = (prim.get("extensions") or {}).get("KHR_draco_mesh_compression")
-    if draco:
-        view = doc["bufferViews"][draco["bufferView"]]
-        mesh = DracoPy.decode(
-            blob[view.get("byteOffset", 0) : view.get("byteOffset", 0) + view["byteLength"]]
-        )
-        by_id = {a["unique_id"]: np.asarray(a["data"]) for a in mesh.attributes}
-        out = {name: by_id[i] for name, i in draco["attributes"].items()}
-        for name, values in list(out.items()):
-            spec = doc["accessors"][prim["attributes"][name]]
-            assert spec["count"] == len(values)
-            if spec.get("normalized"):
-                out[name] = values / 255.0
-        out["indices"] = np.asarray(mesh.faces).reshape(-1, 3)
-        return out
-    out = {name: _accessor(doc, blob, i) for name, i in prim["attributes"].items()}
-    out["indices"] = _accessor(doc, blob, prim["indices"]).reshape(-1, 3)
-    return out
-
-
-def read_glb(path: Path) -> tuple[dict, bytes]:
-    """The document and binary chunk, read by pygltflib (whose dataclass decoding warns
-    about optional fields left out, as glTF allows)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        gltf = pygltflib.GLTF2().load(str(path))
-        return json.loads(gltf.to_json()), gltf.binary_blob() or b""
-
-
-def world_matrices(doc: dict) -> dict[int, list[np.ndarray]]:
-    """mesh -> world matrices of its nodes, with numpy only."""
-
-    def local(node: dict) -> np.ndarray:
-        if "matrix" in node:
-            return np.asarray(node["matrix"]).reshape(4, 4).T
-        x, y, z, w = node.get("rotation", [0, 0, 0, 1])
-        r = np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-            ]
-        )
-        m = np.eye(4)
-        m[:3, :3] = r * np.asarray(node.get("scale", [1, 1, 1]))
-        m[:3, 3] = node.get("translation", [0, 0, 0])
-        return m
-
-    out: dict[int, list[np.ndarray]] = {}
-    stack = [(n, np.eye(4)) for n in doc["scenes"][0]["nodes"]]
-    while stack:
-        index, parent = stack.pop()
-        node = doc["nodes"][index]
-        world = parent @ local(node)
-        if "mesh" in node:
-            out.setdefault(node["mesh"], []).append(world)
-        stack += [(c, world) for c in node.get("children", [])]
-    return out
+# --- reading outputs back, without meshbits: tests/independent.py ----------------------
 
 
 # --- tests ---------------------------------------------------------------------------------

@@ -693,7 +693,7 @@ def _run_task(task: _Task) -> dict[str, Any]:
                 "budget": result.budget if size is None else result.budget / 8,
                 "output_bytes": result.size_bytes,
                 "bits": result.bits,
-                "vertices": len(result.vertices),
+                "vertices": result.vertex_count,
                 "faces": len(result.faces),
                 "input_vertices": len(vertices),
                 "input_faces": len(faces),
@@ -1164,7 +1164,7 @@ def _write_plot(path: Path, result: BatchResult) -> bool:
 
 
 def _options(
-    error: float | None,
+    error: float | str | None,
     size: float | str | None,
     relative: bool,
     format: str,
@@ -1172,12 +1172,19 @@ def _options(
     seed: int,
     max_iterations: int,
 ) -> dict[str, Any]:
-    from .units import parse_size
+    from .units import parse_length, parse_size
 
     if (error is None) == (size is None):
         raise MeshbitsError("give exactly one of error, size")
     if relative and error is None:
         raise MeshbitsError("relative applies to an error budget only")
+    if isinstance(error, str):
+        if relative and error.strip()[-1:].isalpha():
+            raise MeshbitsError(
+                f"error {error!r} has a unit, and relative makes it a fraction of S: give a "
+                "plain number with relative, or drop relative"
+            )
+        error = parse_length(error)
     size_bits = parse_size(size) if isinstance(size, str) else size
     for name, value in (("error", error), ("size", size_bits)):
         if value is not None and not (
@@ -1223,7 +1230,7 @@ def batch(
     source: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
     *,
-    error: float | None = None,
+    error: float | str | None = None,
     size: float | str | None = None,
     relative: bool = False,
     format: str = "drc",
@@ -1248,7 +1255,9 @@ def batch(
         inputs' sub-folders; the report, summary and plot are written in it.
     error
         Hausdorff error budget of every input, in each file's length units (a scene's
-        world units), or a fraction of its largest bounding-box side with ``relative``.
+        world units), or a fraction of its largest bounding-box side with ``relative``;
+        or a text with a unit (``"5cm"``, read by :func:`meshbits.parse_length` as meters,
+        glTF's unit, and as the units of a file that names none).
     size
         Size budget of every output: bits, or a text with a unit (``"100KB"``).
     relative

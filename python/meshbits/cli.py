@@ -538,7 +538,7 @@ def _run_compress(args: argparse.Namespace) -> int:
                 ),
                 (
                     "chosen",
-                    f"B = {result.bits}, V = {len(result.vertices)}, {len(result.faces)} faces",
+                    f"B = {result.bits}, V = {result.vertex_count}, {len(result.faces)} faces",
                 ),
                 (f"measured error ({unit})", result.error),
                 (f"certified error bound ({unit})", _bound_text(result, args.certify)),
@@ -623,9 +623,9 @@ def _run_compress_scene(args: argparse.Namespace) -> int:
     payload = {
         "input": str(args.mesh),
         "output": None if args.output is None else str(args.output),
+        **result.to_dict(),
         "budget_text": _budget_text(args),
         "budget_unit": _budget_unit(args, unit),
-        **result.to_dict(),
     }
     payload["message"] = in_unit(payload["message"], unit)
     if args.json:
@@ -888,12 +888,26 @@ def _run_info(args: argparse.Namespace) -> int:
             if prim.get("zero_area_faces"):
                 count = prim["zero_area_faces"]
                 extras += f"; {count} face{'s' if count > 1 else ''} of zero area"
+            if prim["morph_targets"]:
+                count = prim["morph_targets"]
+                names = ", ".join(prim["morph_target_attributes"])
+                extras += f"; {count} morph target{'s' if count > 1 else ''} ({names})"
             distinct = prim.get("distinct_vertices", prim["vertices"])
             print(
                 f"  mesh {mesh['mesh']} {mesh['name'] or ''} primitive {prim['primitive']}: "
                 f"{_vertices_text(prim['vertices'], prim['vertices'] - distinct)}, "
                 f"{prim['faces']} face{'' if prim['faces'] == 1 else 's'}; {attributes}{extras}"
             )
+    for skin in info["skin_details"]:
+        print(f"  skin {skin['skin']} {skin['name'] or ''}: {skin['joints']} joints")
+    for animation in info["animation_details"]:
+        paths = ", ".join(f"{path} {n}" for path, n in animation["paths"].items())
+        count = animation["channels"]
+        print(
+            f"  animation {animation['animation']} {animation['name'] or ''}: {count} "
+            f"channel{'' if count == 1 else 's'} ({paths}), {animation['keyframes']} "
+            f"keyframes, {animation['duration']:.4g} s"
+        )
     for image in info["images"]:
         size = "x".join(map(str, image["size"])) if image["size"] else "?"
         print(f"  image {image['image']}: {image['mimeType']}, {size}, {image['bytes']} bytes")

@@ -35,13 +35,14 @@ from .constants import (
     FLAT_K,
     FORMAT_MAX_BITS,
 )
+from .encode import draco_max_bits
 from .errors import MeshbitsError
 from .hausdorff import Reference, default_samples
 from .io import write_atomic
-from .mesh import MeshLike, as_mesh
+from .mesh import MeshLike, as_mesh, distinct_positions, kept_shape, lost_geometry_note
 from .quantize import precision_bits
 from .results import SAMPLED_ONLY, ArrayResult, ProgressCallback
-from .search import Iteration, Search, bound_answer, certify_answer, run_search
+from .search import Iteration, Refused, Search, bound_answer, certify_answer, run_search
 from .simplify import METHODS, Simplifier, check_untangled, referenced_vertex_count
 
 __all__ = ["CERTIFY_TOLERANCE", "CompressResult", "Iteration", "compress"]
@@ -109,6 +110,11 @@ class CompressResult(ArrayResult):
     max_bits : int
         The largest B the search could use: the output format's limit, or the input's
         precision (:func:`meshbits.precision_bits`), whichever is smaller.
+    kept_area, kept_extent : float
+        The fractions of the original's surface area and of its largest box side the
+        output keeps; below 0.1 or 0.5 the message warns that the geometry is lost.
+    skipped : tuple of str
+        Candidates the encoder could not encode (each with why), skipped by the search.
     seconds : dict
         Wall time by phase: ``complexity``, ``simplify``, ``encode``, ``hausdorff``.
     """
@@ -135,10 +141,19 @@ class CompressResult(ArrayResult):
     seconds: dict[str, float] = field(repr=False)
     source: str = "original"
     max_bits: int = 30
+    kept_area: float = 1.0
+    kept_extent: float = 1.0
+    skipped: tuple[str, ...] = ()
 
     @property
     def size_bytes(self) -> int:
         return len(self.data)
+
+    @property
+    def vertex_count(self) -> int:
+        """The output's vertices counted once per position (V), though a decoder may get
+        them split into more (:func:`meshbits.mesh.distinct_positions`)."""
+        return distinct_positions(self.vertices)
 
     def write(self, path: str | Path) -> Path:
         """Write the encoded bytes atomically (see :func:`meshbits.io.write_atomic`)."""
@@ -154,7 +169,7 @@ class CompressResult(ArrayResult):
             "met": self.met,
             "message": self.message,
             "bits": self.bits,
-            "vertices": len(self.vertices),
+            "vertices": self.vertex_count,
             "faces": len(self.faces),
             "error": self.error,
             "error_upper": self.error_upper,
@@ -167,6 +182,9 @@ class CompressResult(ArrayResult):
             "level": self.level,
             "source": self.source,
             "max_bits": self.max_bits,
+            "kept_area": self.kept_area,
+            "kept_extent": self.kept_extent,
+            "skipped": list(self.skipped),
             "plan": None if self.plan is None else self.plan.to_dict(),
             "iterations": [it.to_dict() for it in self.iterations],
             "seconds": dict(self.seconds),
@@ -322,6 +340,12 @@ def compress(
     if constraint == "error" and relative:
         budget *= grid_size
     max_bits = min(FORMAT_MAX_BITS[format], precision_bits(original[0], grid_size))
+    if format in ("draco", "ply"):
+        # Their decoded positions are float32: bits beyond float32's spacing at the
+        # coordinates' magnitude move no vertex.
+        max_bits = min(max_bits, precision_bits(_as_float32(original[0]), grid_size))
+    if format == "draco":
+        max_bits = min(max_bits, draco_max_bits(grid_size))
 
     start = time.perf_counter()
     count = max(default_samples(len(original[1])), MIN_SAMPLES) if samples is None else int(samples)
@@ -343,7 +367,13 @@ def compress(
         lods=lods,
         samples=count,
     )
-    run_search(search, max_iterations, progress)
+    try:
+        run_search(search, max_iterations, progress)
+    except Refused as err:
+        raise MeshbitsError(
+            f"no {format} output of this mesh could be encoded: {err}"
+            + _unrepresentable(format, original[0], grid_size)
+        ) from None
     if certify and constraint == "error":
         certify_answer(search, CERTIFY_TOLERANCE * budget, max(2, max_iterations), progress)
     elif certify:
@@ -357,12 +387,23 @@ def compress(
     level = search.levels[chosen.level]
     step = level.grid_size / (2**encoded.bits - 1)
     codes = encoded.codes.astype(np.uint16 if encoded.bits <= 16 else np.uint32)
+    kept_area, kept_extent = kept_shape(original, (encoded.vertices, encoded.faces))
+    skipped = tuple(
+        f"level {index} ({search.levels[index].vertex_count} vertices) at {bits} bits: {why}"
+        for (index, bits), why in search.refused.items()
+    )
     return CompressResult(
         constraint=constraint,
         budget=budget,
         met=met,
         message=_message(constraint, budget, met, chosen, len(search.measurements))
-        + _precision_note(constraint, met, chosen, max_bits, FORMAT_MAX_BITS[format]),
+        + _precision_note(constraint, met, chosen, max_bits, FORMAT_MAX_BITS[format])
+        + _float32_note(constraint, met, budget, format, original[0])
+        + skipped_note(skipped)
+        + lost_geometry_note(kept_area, kept_extent),
+        kept_area=kept_area,
+        kept_extent=kept_extent,
+        skipped=skipped,
         bits=encoded.bits,
         vertices=encoded.vertices,
         faces=encoded.faces,
@@ -430,6 +471,69 @@ def _precision_note(
     return (
         f" (B stops at {max_bits}: over the grid size, the coordinates' floating-point "
         "precision resolves no finer, and the decoded positions are float32 too)"
+    )
+
+
+def skipped_note(skipped: Sequence[str]) -> str:
+    """The candidates the encoder refused, counted, with the first reason."""
+    if not skipped:
+        return ""
+    count = len(skipped)
+    return f" ({count} candidate{'s' if count > 1 else ''} skipped, e.g. {skipped[0]})"
+
+
+def _unrepresentable(format: str, vertices: np.ndarray, grid_size: float) -> str:
+    """Why a format of float32 positions cannot hold a mesh far from the origin, when it
+    cannot: float32's spacing there is coarser than a 64th of the mesh's size."""
+    if format not in ("draco", "ply"):
+        return ""
+    largest = float(np.abs(vertices).max())
+    spacing = 2 * float32_rounding(vertices) / math.sqrt(3)
+    if spacing <= grid_size / 64:
+        return ""
+    suffix = ".drc" if format == "draco" else ".ply"
+    return (
+        f" ({suffix} stores float32 positions: at coordinates up to {largest:.4g} (mesh units) "
+        f"float32 is spaced {spacing:.4g} apart, against a mesh of size {grid_size:.4g}; a "
+        ".glb or .gltf output stores them relative to a centre its node carries)"
+    )
+
+
+def _as_float32(vertices: np.ndarray) -> np.ndarray:
+    """The coordinates rounded to float32 (as float64), or as they are beyond its range
+    (which the encoders refuse)."""
+    with np.errstate(over="ignore"):
+        rounded = vertices.astype(np.float32).astype(np.float64)
+    return rounded if np.isfinite(rounded).all() else vertices
+
+
+def float32_rounding(vertices: np.ndarray) -> float:
+    """The largest distance float32 can move a vertex by rounding its coordinates (length):
+    half the spacing of float32 at the largest coordinate, on each of three axes."""
+    largest = float(np.abs(vertices).max(initial=0.0))
+    if largest == 0 or not math.isfinite(largest):
+        return 0.0
+    spacing = math.ldexp(1.0, math.frexp(largest)[1] - 24)
+    return 0.5 * spacing * math.sqrt(3)
+
+
+def _float32_note(
+    constraint: str, met: bool, budget: float, format: str, vertices: np.ndarray
+) -> str:
+    """Why an error budget was missed by a format of float32 positions far from the
+    origin."""
+    if met or constraint != "error" or format not in ("draco", "ply"):
+        return ""
+    rounding = float32_rounding(vertices)
+    if rounding <= 0.1 * budget:
+        return ""
+    largest = float(np.abs(vertices).max())
+    suffix = ".drc" if format == "draco" else ".ply"
+    return (
+        f" ({suffix} stores float32 positions: at coordinates up to {largest:.4g} (mesh "
+        f"units) float32 alone moves a vertex by up to {rounding:.4g} (mesh units), against "
+        f"a budget of {budget:.4g}; a .glb or .gltf output stores them relative to a "
+        "centre its node carries)"
     )
 
 

@@ -172,6 +172,13 @@ class Document:
         self.json = data
         self.buffers = buffers
         self.base = base
+        #: What reading the file left out or changed, said in the reports (an OBJ's
+        #: missing material library).
+        self.notes: list[str] = []
+        #: ``POSITION`` accessor -> its values as the input gave them (float64), for a
+        #: document made from another format, whose accessors hold them rounded to float32
+        #: (:func:`load_document`): what every measurement compares against.
+        self.exact_positions: dict[int, np.ndarray] = {}
         asset = data.get("asset", {})
         if not str(asset.get("version", "")).startswith("2."):
             raise MeshFileError(f"not a glTF 2.0 document (asset.version {asset.get('version')!r})")
@@ -381,7 +388,10 @@ class Document:
             attributes, types = {}, {}
             for name, acc in prim.get("attributes", {}).items():
                 joints = name.startswith("JOINTS_")
-                values = self.accessor(acc, normalize=not joints)
+                if name == "POSITION" and acc in self.exact_positions:
+                    values = self.exact_positions[acc]
+                else:
+                    values = self.accessor(acc, normalize=not joints)
                 # KHR_mesh_quantization: integers that are not normalized are values as
                 # they are (positions as grid codes, their scale in the node transforms).
                 attributes[name] = values if joints else values.astype(np.float64, copy=False)
@@ -456,20 +466,11 @@ class Document:
         node = self._item("nodes", index)
         if "matrix" in node:
             return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
-        t = np.asarray(node.get("translation", [0, 0, 0]), dtype=np.float64)
-        x, y, z, w = node.get("rotation", [0, 0, 0, 1])
-        r = np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-            ]
+        return _trs_matrix(
+            node.get("translation", [0, 0, 0]),
+            node.get("rotation", [0, 0, 0, 1]),
+            node.get("scale", [1, 1, 1]),
         )
-        s = np.asarray(node.get("scale", [1, 1, 1]), dtype=np.float64)
-        out = np.eye(4)
-        out[:3, :3] = r * s
-        out[:3, 3] = t
-        return out
 
     def mesh_instances(self) -> dict[int, list[tuple[int, np.ndarray]]]:
         """Each mesh's instances: ``(node, world matrix)`` over every scene's node trees
@@ -490,11 +491,52 @@ class Document:
             world = parent @ self.node_matrix(index)
             node = self._item("nodes", index)
             if node.get("mesh") is not None:
-                out.setdefault(int(node["mesh"]), []).append((index, world))
+                shown = out.setdefault(int(node["mesh"]), [])
+                instancing = self.instance_matrices(index)
+                if instancing is None:
+                    shown.append((index, world))
+                else:
+                    shown.extend((index, world @ matrix) for matrix in instancing)
             stack.extend((c, world, depth + 1) for c in node.get("children", []))
         for m in range(len(self.json.get("meshes", []))):
             out.setdefault(m, [(-1, np.eye(4))])
         return out
+
+    def instance_matrices(self, index: int) -> list[np.ndarray] | None:
+        """The transforms ``EXT_mesh_gpu_instancing`` gives node ``index``'s mesh, each
+        applied before the node's own (4x4); None for a node without the extension."""
+        node = self._item("nodes", index)
+        spec = (node.get("extensions") or {}).get("EXT_mesh_gpu_instancing")
+        if not isinstance(spec, dict):
+            return None
+        attributes = spec.get("attributes") or {}
+        columns = {
+            name: self.accessor(attributes[name])
+            for name in ("TRANSLATION", "ROTATION", "SCALE")
+            if attributes.get(name) is not None
+        }
+        counts = {len(values) for values in columns.values()}
+        if len(counts) > 1:
+            raise MeshFileError(
+                f"nodes[{index}]: EXT_mesh_gpu_instancing attributes of different counts "
+                f"{sorted(counts)}"
+            )
+        out = []
+        for i in range(counts.pop() if counts else 0):
+            t = columns["TRANSLATION"][i] if "TRANSLATION" in columns else np.zeros(3)
+            q = columns["ROTATION"][i] if "ROTATION" in columns else (0.0, 0.0, 0.0, 1.0)
+            scale = columns["SCALE"][i] if "SCALE" in columns else np.ones(3)
+            out.append(_trs_matrix(t, q, scale))
+        return out
+
+    def instanced_meshes(self) -> set[int]:
+        """Meshes some node shows through ``EXT_mesh_gpu_instancing``."""
+        return {
+            int(node["mesh"])
+            for node in self.json.get("nodes", [])
+            if node.get("mesh") is not None
+            and "EXT_mesh_gpu_instancing" in (node.get("extensions") or {})
+        }
 
     def world_triangles(self) -> tuple[np.ndarray, np.ndarray]:
         """Every triangle primitive at each of its instances (:meth:`mesh_instances`), in
@@ -522,6 +564,23 @@ class Document:
         }
 
 
+def _trs_matrix(translation: Any, rotation: Any, scale: Any) -> np.ndarray:
+    """``T * R * S`` (4x4) from a translation, a unit quaternion ``(x, y, z, w)`` and a
+    scale, as glTF composes a node's."""
+    x, y, z, w = (float(c) for c in rotation)
+    r = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    out = np.eye(4)
+    out[:3, :3] = r * np.asarray(scale, dtype=np.float64)
+    out[:3, 3] = np.asarray(translation, dtype=np.float64)
+    return out
+
+
 def largest_scale(matrix: np.ndarray) -> float:
     """The largest singular value of a transform's linear part: how much it can stretch a
     length."""
@@ -545,11 +604,54 @@ def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
     return np.stack([np.full(len(i), indices[0]), indices[i], indices[i + 1]], axis=1)
 
 
+#: MTL statements naming a texture file (its last word; options come before it).
+_MTL_MAPS = (
+    b"map_",
+    b"bump",
+    b"disp",
+    b"decal",
+    b"refl",
+    b"norm",
+)
+
+
+def _obj_files(path: Path) -> list[tuple[str, Path]]:
+    """The material libraries an OBJ names (``mtllib``) and the textures those that exist
+    name, as ``(name, path)``."""
+    out: list[tuple[str, Path]] = []
+    try:
+        with path.open("rb") as lines:
+            libraries = [
+                name
+                for line in lines
+                if line.startswith(b"mtllib")
+                for name in line[6:].decode("utf-8", "replace").split()
+            ]
+    except OSError:
+        return []
+    for name in libraries:
+        library = path.parent / name
+        out.append((name, library))
+        try:
+            text = library.read_bytes().splitlines()
+        except OSError:
+            continue
+        for line in text:
+            words = line.strip().split()
+            if len(words) >= 2 and words[0].lower().startswith(_MTL_MAPS):
+                texture = words[-1].decode("utf-8", "replace")
+                out.append((texture, library.parent / texture))
+    return out
+
+
 def external_files(path: str | Path) -> list[tuple[str, Path]]:
-    """The files a ``.gltf`` names by relative URI (its buffers, then its images), as
-    ``(uri, path)``, whether they exist or not; none for any other file, or for one that
-    cannot be read as JSON (its reader says why when it is loaded)."""
+    """The files a ``.gltf`` names by relative URI (its buffers, then its images), or an
+    OBJ (its material libraries and their textures), as ``(name, path)``, whether they
+    exist or not; none for any other file, or for one that cannot be read as JSON (its
+    reader says why when it is loaded)."""
     path = Path(path)
+    if path.suffix.lower() == ".obj":
+        return _obj_files(path)
     if path.suffix.lower() != ".gltf":
         return []
     try:
@@ -571,9 +673,9 @@ def external_files(path: str | Path) -> list[tuple[str, Path]]:
 
 def asset_bytes(path: str | Path) -> int:
     """A file's bytes; for a ``.gltf``, with the buffers and images it names by relative
-    URI (the asset's whole size)."""
+    URI, for an OBJ with its material libraries and textures (the asset's whole size)."""
     path = Path(path)
-    parts = [part for _, part in external_files(path) if part.is_file()]
+    parts = {part.resolve() for _, part in external_files(path) if part.is_file()}
     return path.stat().st_size + sum(part.stat().st_size for part in parts)
 
 
@@ -1108,7 +1210,11 @@ def _from_gltf(document: dict[str, Any], base: Path | None, binary: bytes = b"")
 
 
 def _from_trimesh(path: Path) -> Document:
-
+    """A file of another format as a glTF document, through trimesh's glTF export. The
+    export stores positions as float32; the document keeps the file's own (float64) in
+    :attr:`Document.exact_positions`. A mesh far from the origin (its box's centre farther
+    than its largest side) is exported relative to that centre, which a root node carries
+    as its translation (float64 in the JSON), so that float32 keeps its precision."""
     import trimesh
 
     from .io import checked_mesh_file, parse_mesh_file
@@ -1116,10 +1222,101 @@ def _from_trimesh(path: Path) -> Document:
     source, file_type, compressed = checked_mesh_file(path)
     loaded = parse_mesh_file(path, source, file_type, compressed)
     scene = loaded if isinstance(loaded, trimesh.Scene) else trimesh.Scene(loaded)
-    if not any(isinstance(g, trimesh.Trimesh) and len(g.faces) for g in scene.geometry.values()):
+    meshes = {
+        name: g
+        for name, g in scene.geometry.items()
+        if isinstance(g, trimesh.Trimesh) and len(g.faces)
+    }
+    if not meshes:
         raise MeshFileError(f"{path} holds no triangle mesh")
-    glb = scene.export(file_type="glb")
-    return _from_glb(glb, path.parent)
+    placed = all(
+        np.array_equal(scene.graph[node][0], np.eye(4)) for node in scene.graph.nodes_geometry
+    )
+    exact = {name: np.asarray(g.vertices, dtype=np.float64) for name, g in meshes.items()}
+    centre = np.zeros(3)
+    if placed:
+        centre = frame_centre(np.concatenate(list(exact.values())))
+    if centre.any():
+        for name, g in meshes.items():
+            g.vertices = exact[name] - centre
+    document = _from_glb(scene.export(file_type="glb"), path.parent)
+    for mesh in document.json.get("meshes", []):
+        local = exact.get(mesh.get("name"))
+        for prim in mesh.get("primitives", []):
+            index = prim.get("attributes", {}).get("POSITION")
+            if local is None or index is None:
+                continue
+            values = local - centre
+            stored = document.accessor(index)
+            if stored.shape == values.shape and np.array_equal(
+                stored.astype(np.float32), values.astype(np.float32)
+            ):
+                document.exact_positions[index] = values
+    missing = _missing_material_libraries(path) if file_type == "obj" else []
+    if missing:
+        _drop_materials(document.json)
+        document.notes.append(
+            f"material librar{'ies' if len(missing) > 1 else 'y'} {', '.join(missing)} not "
+            "found: written without materials"
+        )
+    if centre.any():
+        # The export's nodes are all at the identity (``placed``): the roots take the
+        # centre as their translation.
+        nodes = document.json.get("nodes", [])
+        roots = {n for scene_spec in document.json.get("scenes", []) for n in scene_spec["nodes"]}
+        for root in sorted(roots):
+            nodes[root].pop("matrix", None)
+            nodes[root]["translation"] = [float(x) for x in centre]
+    return document
+
+
+#: A mesh whose box centre is farther from the origin than this many times its largest
+#: side is stored relative to that centre (:func:`frame_centre`): there float32 rounds a
+#: position by up to 1e-6 of the side, a sixteenth of a grid step at 18 bits.
+FRAME_DISTANCE = 16.0
+
+
+def _missing_material_libraries(path: Path) -> list[str]:
+    """The ``mtllib`` files an OBJ names that are not beside it (trimesh then invents a
+    material, with a placeholder image for one with UVs)."""
+    if not path.suffix.lower() == ".obj":
+        return []
+    missing = []
+    with path.open("rb") as lines:
+        for line in lines:
+            if line.startswith(b"mtllib"):
+                for name in line[6:].decode("utf-8", "replace").split():
+                    if not (path.parent / name).is_file():
+                        missing.append(name)
+    return missing
+
+
+def _drop_materials(document: dict[str, Any]) -> None:
+    """Remove every material, texture, sampler and image of a document (and the
+    primitives' references to them): what an OBJ without its material library holds."""
+    for key in ("materials", "textures", "samplers", "images"):
+        document.pop(key, None)
+    for mesh in document.get("meshes", []):
+        for prim in mesh.get("primitives", []):
+            prim.pop("material", None)
+
+
+def frame_centre(points: np.ndarray) -> np.ndarray:
+    """Where to put the origin of positions stored in float32 (mesh units): the centre of
+    the points' box, rounded to the power of two at or above its largest side (a short
+    number in the JSON; the positions stay within 1.5 sides of it), when that centre is
+    farther from the origin than :data:`FRAME_DISTANCE` sides; else the origin itself."""
+    if len(points) == 0:
+        return np.zeros(3)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    extent = float((hi - lo).max())
+    centre = (lo + hi) / 2
+    if not np.abs(centre).max() > FRAME_DISTANCE * extent:
+        return np.zeros(3)
+    if extent > 0:
+        unit = 2.0 ** math.ceil(math.log2(extent))
+        centre = np.round(centre / unit) * unit
+    return centre
 
 
 def merged_bounds(points: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:

@@ -161,7 +161,10 @@ def parse_mesh_file(
         from .encode import decode_draco
 
         data = source.read() if isinstance(source, _io.BytesIO) else path.read_bytes()
-        return trimesh.Trimesh(*decode_draco(data), process=False)
+        try:
+            return trimesh.Trimesh(*decode_draco(data), process=False)
+        except MeshFileError as err:
+            raise MeshFileError(f"{path}: {err}") from None
     if file_type in ("glb", "gltf"):
         from .gltf import load_gltf_document
 

@@ -20,7 +20,7 @@ import copy
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -35,8 +35,8 @@ from .constants import (
     DRACO_ALPHA,
     DRACO_CONNECTIVITY_BITS,
     FLAT_K,
-    FORMAT_MAX_BITS,
 )
+from .encode import draco_encode, draco_max_bits, draco_quantization
 from .errors import MeshbitsError, MeshFileError
 from .gltf import (
     COMPONENT_TYPES,
@@ -46,17 +46,20 @@ from .gltf import (
     PrimitiveData,
     asset_bytes,
     finite_or_fail,
+    frame_centre,
     image_size,
     largest_scale,
     load_document,
 )
 from .hausdorff import Reference, default_samples
 from .io import check_not_an_input, write_atomic
-from .quantize import precision_bits
+from .mesh import distinct_positions, kept_shape, lost_geometry_note
+from .quantize import cube_grid, precision_bits
 from .results import SAMPLED_ONLY, Progress, ProgressCallback
 from .search import (
     BASE_FACES,
     Attributes,
+    Refused,
     Search,
     bound_answer,
     certify_answer,
@@ -106,6 +109,11 @@ SIZE_ONE_MARGIN = 16
 
 #: The size split stops at a file of at least this fraction of the budget.
 SIZE_SPLIT_FILL = 0.97
+
+#: Relative float64 rounding of a world position a reader composes from the file (node
+#: transforms applied to float32 or integer positions), bounded generously: every
+#: certified world-space bound is raised by this times the largest world coordinate.
+WORLD_ROUNDING = 16 * 2.0**-52
 
 #: The size split aims at this fraction of the budget (measured sizes scatter around the
 #: log-log line).
@@ -331,12 +339,13 @@ def encode_draco_primitive(
             generic[name] = _unit_u8(values)
         else:
             generic[name] = np.asarray(values, dtype=np.float32)
-    data = DracoPy.encode(
+    draco_bits, draco_range = draco_quantization(bits, grid_size)
+    data = draco_encode(
         np.asarray(vertices, dtype=np.float64),
         np.asarray(faces, dtype=np.uint32),
-        quantization_bits=int(bits),
+        quantization_bits=draco_bits,
         compression_level=7,
-        quantization_range=float(grid_size) if grid_size > 0 else -1,
+        quantization_range=draco_range,
         quantization_origin=np.asarray(origin, dtype=np.float64),
         normals=np.asarray(attributes["NORMAL"], dtype=np.float64)
         if "NORMAL" in attributes
@@ -452,6 +461,7 @@ def encode_meshopt_primitive(
         )
     else:
         stored = grid.astype(np.float32)
+        grid = stored.astype(np.float64)
         streams.append(_stream("POSITION", stored))
         accessors["POSITION"] = _accessor_fields(stored, 5126, False, True)
     for name, values in attributes.items():
@@ -584,7 +594,15 @@ class PrimitiveReport:
     met : bool
         Within its budget: by the certified bound, or with ``certify=False`` by ``error``.
     kept : str or None
-        Why it was copied as it was, when it was (morph targets).
+        Why it was copied as it was, when it was (morph targets, no faces, compression
+        that would not make it smaller, a codec that refused it).
+    shared_with : tuple of (mesh, primitive)
+        Other primitives reading the same accessors: one compressed geometry serves all.
+    skipped : int
+        Candidates of its search the codec refused (each skipped, the search went on).
+    kept_area, kept_extent : float
+        The fractions of its surface area and of its largest box side the output keeps;
+        below 0.1 or 0.5 the scene's message warns that the geometry is lost.
     """
 
     mesh: int
@@ -607,6 +625,10 @@ class PrimitiveReport:
     error_upper: float | None = None
     world_error_upper: float | None = None
     input_distinct_vertices: int | None = None
+    shared_with: tuple[tuple[int, int], ...] = ()
+    skipped: int = 0
+    kept_area: float = 1.0
+    kept_extent: float = 1.0
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -647,6 +669,11 @@ class SceneResult:
     length_unit : str
         The unit of the lengths: ``"m"`` for a glTF input (its unit is the meter), else
         ``"mesh units"`` (the file's own coordinates).
+    notes : tuple of str
+        What reading the input left out (an OBJ's missing material library).
+    budget_text, budget_unit : str
+        The budget as it was given (``"0.01 x S"``, ``"0.002"``, ``"20000 bytes"``), and the
+        unit of ``budget``: ``"bits"`` for a size budget, else ``length_unit``.
     size_bytes : int
         The written file (GLB; for ``.gltf``, the JSON plus its buffer).
     input_bytes : int
@@ -667,6 +694,9 @@ class SceneResult:
     files: tuple[str, ...] = ()
     world_error_upper: float | None = None
     length_unit: str = "mesh units"
+    notes: tuple[str, ...] = ()
+    budget_text: str = ""
+    budget_unit: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready; a size budget is also given in bytes (``budget_bytes``), as
@@ -679,18 +709,106 @@ class SceneResult:
 
 # --- the scene search ----------------------------------------------------------------------
 
+#: What a primitive's search gives: its measurement, its encoding and its level; all None
+#: for a primitive written as it was.
+Outcome = tuple[Any, Any, Any]
+KEPT: Outcome = (None, None, None)
+
 
 @dataclass
 class _Job:
+    """One geometry to compress: a primitive, with every other primitive whose attributes
+    and indices are the same accessors (``targets``, its own first), encoded once and
+    shared by all of them."""
+
     data: PrimitiveData
     name: str | None
     instances: int
     scale: float
     bits: AttributeBits
+    targets: list[tuple[int, int]] = field(default_factory=list)
     reference: Reference | None = None
     k: float = 0.0
     grid_size: float = 0.0
-    results: dict[tuple[float, bool], tuple[Any, Encoding, Any]] = field(default_factory=dict)
+    results: dict[tuple[str, float, bool], Outcome] = field(default_factory=dict)
+    #: Its positions are encoded in a frame of their own, which the nodes showing its
+    #: meshes carry: ``offset`` (mesh units) subtracted from them, and with meshopt the
+    #: grid's origin and step. False for a skinned or instanced mesh (its node's transform
+    #: is not its only one) and for a mesh of which some primitive is kept as it was.
+    framed: bool = False
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: Jobs of one cluster share their meshes' frames (and with meshopt, one grid).
+    cluster: int = -1
+    #: Why its primitives are written as they were (None: compressed).
+    kept: str | None = None
+    #: Candidates its search skipped (the encoder refused them), each with why.
+    skipped: tuple[str, ...] = ()
+
+    @property
+    def meshes(self) -> set[int]:
+        return {mesh for mesh, _ in self.targets}
+
+
+def _geometry_key(document: Document, data: PrimitiveData) -> str:
+    """What makes two primitives one geometry: the same accessors (or Draco data) for
+    every attribute and the indices, in the same mode."""
+    prim = document.json["meshes"][data.mesh]["primitives"][data.index]
+    return json.dumps(
+        [
+            prim.get("attributes"),
+            prim.get("indices"),
+            prim.get("mode", 4),
+            (prim.get("extensions") or {}).get("KHR_draco_mesh_compression"),
+        ],
+        sort_keys=True,
+    )
+
+
+def _finer(a: AttributeBits, b: AttributeBits) -> AttributeBits:
+    """The bits that keep both primitives of a shared geometry within their tolerances."""
+    uv = {name: max(a.uv.get(name, 0), b.uv.get(name, 0)) for name in {*a.uv, *b.uv}}
+    return AttributeBits(
+        normal=max(a.normal, b.normal),
+        uv=uv,
+        color=max(a.color, b.color),
+        weight=max(a.weight, b.weight),
+    )
+
+
+def _plan_jobs(
+    document: Document,
+    primitives: list[PrimitiveData],
+    instances: dict[int, list[tuple[int, np.ndarray]]],
+    normal_tolerance: float,
+    where: str,
+) -> tuple[list[_Job], list[PrimitiveData]]:
+    """The geometries to compress (primitives sharing accessors as one) and the
+    primitives kept as they are (morph targets, no faces)."""
+    jobs: dict[str, _Job] = {}
+    kept: list[PrimitiveData] = []
+    for data in primitives:
+        if data.morph or len(data.faces) == 0:
+            kept.append(data)
+            continue
+        nodes = instances.get(data.mesh, [])
+        scale = max((largest_scale(m) for _, m in nodes), default=1.0) or 1.0
+        mesh_name = document.json["meshes"][data.mesh].get("name")
+        finite_or_fail(
+            f"{where}mesh {data.mesh} ({mesh_name or 'unnamed'}), primitive {data.index}: POSITION",
+            data.positions,
+        )
+        bits = choose_attribute_bits(document, data, normal_tolerance)
+        key = _geometry_key(document, data)
+        job = jobs.get(key)
+        if job is None:
+            jobs[key] = _Job(data, mesh_name, len(nodes), scale, bits, [(data.mesh, data.index)])
+            continue
+        job.targets.append((data.mesh, data.index))
+        job.scale = max(job.scale, scale)
+        job.bits = _finer(job.bits, bits)
+    for job in jobs.values():
+        job.instances = sum(len(instances.get(mesh, [])) for mesh in job.meshes)
+    return list(jobs.values()), kept
 
 
 def _attribute_weights(names: list[str], budget: float, bits: AttributeBits) -> dict[str, float]:
@@ -709,6 +827,20 @@ def _attribute_weights(names: list[str], budget: float, bits: AttributeBits) -> 
     return weights
 
 
+def _job_reference(job: _Job, seed: int) -> Reference:
+    """The job's original (its BVH and samples), with its K and grid, built once."""
+    if job.reference is None:
+        original = (job.data.positions, job.data.faces)
+        samples = default_samples(len(job.data.faces))
+        if len(job.data.faces) <= BASE_FACES:
+            samples = min(samples, SCENE_SAMPLES)
+        job.reference = Reference(original, samples=samples, seed=seed)
+        complexity = shape_complexity(original)
+        job.k = max(complexity.k, FLAT_K)
+        job.grid_size = complexity.grid_size
+    return job.reference
+
+
 def _search_primitive(
     job: _Job,
     budget: float,
@@ -716,21 +848,17 @@ def _search_primitive(
     seed: int,
     certify: bool,
     constraint: str = "error",
-) -> tuple[Any, Encoding, Any]:
+) -> Outcome:
     """The fewest bytes of one primitive within a local error budget, or with
-    ``constraint="size"`` the least error within ``budget`` bits of its own (cached)."""
+    ``constraint="size"`` the least error within ``budget`` bits of its own (cached).
+    :data:`KEPT` when the encoder refuses every candidate: the job is then kept as it
+    was, and says why."""
+    if job.kept is not None:
+        return KEPT
     if (constraint, budget, certify) in job.results:
         return job.results[(constraint, budget, certify)]
     data = job.data
-    original = (data.positions, data.faces)
-    if job.reference is None:
-        samples = default_samples(len(data.faces))
-        if len(data.faces) <= BASE_FACES:
-            samples = min(samples, SCENE_SAMPLES)
-        job.reference = Reference(original, samples=samples, seed=seed)
-        complexity = shape_complexity(original)
-        job.k = max(complexity.k, FLAT_K)
-        job.grid_size = complexity.grid_size
+    reference = _job_reference(job, seed)
     attributes = None
     if data.attributes:
         attributes = Attributes(
@@ -750,15 +878,16 @@ def _search_primitive(
             origin,
             grid_size,
             job.bits,
-            integer_positions=not data.skinned,
+            integer_positions=job.framed,
         )
 
     max_bits = min(
-        16 if codec == "meshopt" else FORMAT_MAX_BITS["draco"], precision_bits(data.positions)
+        16 if codec == "meshopt" else draco_max_bits(job.grid_size),
+        precision_bits(data.positions),
     )
     search = Search(
-        original,
-        job.reference,
+        (data.positions, data.faces),
+        reference,
         constraint=constraint,
         budget=budget,
         k=job.k,
@@ -768,17 +897,24 @@ def _search_primitive(
         alpha=DRACO_ALPHA,
         connectivity_bits=DRACO_CONNECTIVITY_BITS,
         method="meshopt" if attributes is not None else "auto",
-        samples=job.reference.samples,
+        samples=reference.samples,
         attributes=attributes,
         codec=encode,
     )
-    run_search(search, SCENE_PASSES)
+    try:
+        run_search(search, SCENE_PASSES)
+    except Refused as err:
+        job.kept = f"{codec} could not encode it: {err}"
+        return KEPT
     if certify and constraint == "error":
         certify_answer(search, CERTIFY_TOLERANCE * budget, SCENE_PASSES)
     elif certify:
         bound_answer(search, ANSWER_RELATIVE_TOLERANCE)
     chosen = search.best() or search.closest()
     outcome = (chosen, search.encoded(chosen), search.levels[chosen.level])
+    job.skipped = tuple(
+        f"level {index} at {bits} bits: {why}" for (index, bits), why in search.refused.items()
+    )
     job.results[(constraint, budget, certify)] = outcome
     return outcome
 
@@ -799,6 +935,12 @@ def compress_scene(
     """Compress every triangle primitive of a scene to one world-space budget and write
     the scene with everything else kept.
 
+    Primitives whose attributes and indices are the same accessors are compressed once
+    and keep sharing their data. A primitive (with every primitive sharing its meshes'
+    frame) whose compressed data would not be smaller than its input's is written as it
+    was; a glTF input whose compressed file would be larger than itself is written as it
+    was (byte for byte, ``.glb`` to ``.glb``).
+
     Parameters
     ----------
     source
@@ -806,7 +948,7 @@ def compress_scene(
         or any mesh trimesh reads; or a :class:`meshbits.gltf.Document`.
     error
         World-space error budget: the Hausdorff distance of every primitive, scaled by the
-        largest scale of the nodes that show it, in world units (or with ``relative``, as
+        largest scale of the nodes that instance it, in world units (or with ``relative``, as
         a fraction of the largest side of the scene's world bounding box).
     size
         Size budget of the whole file, in **bits** (the CLI parses "100KB").
@@ -832,27 +974,16 @@ def compress_scene(
     SceneResult
     """
     start = time.perf_counter()
-    given = [n for n, v in (("error", error), ("size", size)) if v is not None]
-    if len(given) != 1:
-        raise MeshbitsError(f"give exactly one of error, size (got {given or 'none'})")
-    if codec not in CODECS:
-        raise MeshbitsError(f"codec must be one of {CODECS}, got {codec!r}")
-    budget = budget_number(given[0], error if error is not None else size)
-    if not (math.isfinite(budget) and budget > 0):
-        raise MeshbitsError(f"the {given[0]} budget must be a positive finite number, got {budget}")
-    if not (0 < normal_tolerance < 90):
-        raise MeshbitsError(f"normal_tolerance must be in (0, 90) degrees, got {normal_tolerance}")
-    if output is not None and Path(output).suffix.lower() not in (".glb", ".gltf"):
-        raise MeshbitsError(f"a scene is written as .glb or .gltf, not {Path(output).suffix}")
+    constraint, budget = _check_scene_arguments(error, size, codec, normal_tolerance, output)
     if output is not None and not isinstance(source, Document):
         check_not_an_input(output, source)
-    input_bytes = 0
     if not isinstance(source, (str, Path, Document)):
         raise TypeError(
             f"compress_scene takes a file path or a meshbits.gltf.Document, got "
             f"{type(source).__name__}: for a mesh in memory use meshbits.compress, or export "
             "the scene to a .glb first"
         )
+    input_bytes = 0
     if isinstance(source, Document):
         document = source
     else:
@@ -866,149 +997,371 @@ def compress_scene(
     # A glTF's lengths are meters; another file's are its own coordinates, as its JSON
     # report says (``length_unit``).
     unit = "m" if isinstance(source, Document) else length_unit_of(source)
-
     instances = document.mesh_instances()
-    jobs: list[_Job] = []
-    kept: list[PrimitiveData] = []
     where = "" if isinstance(source, Document) else f"{source}: "
     primitives = _decoded_primitives(document, where)
-    for data in primitives:
-        if data.morph:
-            kept.append(data)
-            continue
-        if len(data.faces) == 0:
-            kept.append(data)
-            continue
-        nodes = instances.get(data.mesh, [])
-        scale = max((largest_scale(m) for _, m in nodes), default=1.0) or 1.0
-        mesh_name = document.json["meshes"][data.mesh].get("name")
-        finite_or_fail(
-            f"{where}mesh {data.mesh} ({mesh_name or 'unnamed'}), primitive {data.index}: POSITION",
-            data.positions,
-        )
-        bits = choose_attribute_bits(document, data, normal_tolerance)
-        jobs.append(_Job(data, mesh_name, len(nodes), scale, bits))
-    if not jobs:
-        raise MeshFileError("the scene has no triangle primitive to compress")
-    world_size = _world_size(primitives, instances)
-    if given[0] == "error" and relative:
+    jobs, kept = _plan_jobs(document, primitives, instances, normal_tolerance, where)
+    if not jobs and not kept:
+        raise MeshFileError("the scene has no triangle primitive")
+    _place_in_frames(jobs, kept, document)
+    world_size, reach = _world_box(primitives, instances)
+    # The world positions a reader computes (float32 values through float64 node
+    # transforms) carry float64 rounding that the measurement in each mesh's frame does
+    # not: every bound is raised by it.
+    margin = WORLD_ROUNDING * reach
+    if constraint == "error" and relative:
         budget *= world_size
 
-    def run_at(world_error: float) -> list[tuple[Any, Encoding, Any]]:
+    def run_at(world_error: float) -> list[Outcome]:
         outcomes = []
         for job in jobs:
-            outcome = _search_primitive(job, world_error / job.scale, codec, seed, certify)
+            local = max(world_error - margin, world_error / 2) / job.scale
+            outcome = _search_primitive(job, local, codec, seed, certify)
             outcomes.append(outcome)
-            say(
-                f"mesh {job.data.mesh} primitive {job.data.index} within {world_error:.4g}: "
-                f"B = {outcome[0].bits}, V = {len(outcome[1].vertices)}, "
-                f"{outcome[1].size_bits // 8} bytes, error "
-                f"{outcome[0].measured_error * job.scale:.4g} ({unit})"
-            )
+            if outcome[0] is not None:
+                say(
+                    f"mesh {job.data.mesh} primitive {job.data.index} within "
+                    f"{world_error:.4g}: B = {outcome[0].bits}, V = {outcome[0].vertices}, "
+                    f"{outcome[1].size_bits // 8} bytes, error "
+                    f"{outcome[0].measured_error * job.scale:.4g} ({unit})"
+                )
         return outcomes
 
-    if given[0] == "error":
-        outcomes = run_at(budget)
-        target_error = budget
+    if not jobs:
+        outcomes, target_error = [], budget if constraint == "error" else 0.0
+    elif constraint == "error":
+        outcomes, target_error = run_at(budget), budget
     else:
+        outcomes, target_error = _size_search(
+            document, jobs, budget, codec, seed, certify, run_at, world_size
+        )
+    encodings, measured, uppers = _final_encodings(
+        jobs, outcomes, codec, certify, target_error, margin
+    )
+    _keep_what_grows(document, jobs, encodings)
+    out, data = _rebuild(document, jobs, encodings, codec)
+    written: bytes | None = None
+    grew = _larger_than_input(source, output, input_bytes, out, data)
+    if grew is not None:
+        for job in jobs:
+            job.kept = job.kept or grew
+        out, data = _rebuild(document, jobs, encodings, codec)
+        if _larger_than_input(source, output, input_bytes, out, data) and _verbatim(source, output):
+            written = Path(source).read_bytes()  # type: ignore[arg-type]
+    files, size_bytes = _emit(out, data, output, written)
+    reports = [
+        _job_report(
+            document,
+            job,
+            outcome,
+            encoding,
+            error,
+            upper,
+            target_error,
+            margin,
+            certify,
+            constraint,
+        )
+        for job, outcome, encoding, error, upper in zip(
+            jobs, outcomes, encodings, measured, uppers, strict=True
+        )
+    ]
+    reports += [_kept_report(document, data, instances, certify) for data in kept]
+    return _scene_result(
+        constraint,
+        budget,
+        certify,
+        codec,
+        reports,
+        size_bytes,
+        input_bytes,
+        files,
+        unit,
+        start,
+        document.notes,
+        _budget_text(error, size, relative),
+    )
 
-        def file_bytes(outcomes: list[tuple[Any, Encoding, Any]]) -> int:
-            encodings = [o[1] for o in outcomes]
-            if codec == "meshopt":
-                encodings, _, _ = _shared_grids(jobs, outcomes)
-            return _write(document, jobs, encodings, codec, None)[1]
 
-        fixed = _fixed_bytes(document, jobs)
-        if budget / 8 - fixed <= 0:
-            images = len(document.json.get("images", []))
-            parts = (
-                f"{images} image{'' if images == 1 else 's'}, its JSON and other data"
-                if images
-                else "its JSON and other data"
-            )
-            raise MeshbitsError(
-                f"the size budget ({budget / 8:.6g} bytes) is less than what the output keeps "
-                f"whatever its geometry: {parts} ({fixed} bytes)"
-            )
-        if len(jobs) == 1:
-            outcomes, target_error = _size_one(
-                jobs[0], budget, fixed, codec, seed, certify, file_bytes
-            )
-        else:
-            outcomes, target_error = _split_size(jobs, budget, run_at, world_size, file_bytes)
-    measured = [o[0].measured_error for o in outcomes]
-    uppers = [o[0].measured_error_upper if certify else None for o in outcomes]
+def _budget_text(error: Any, size: Any, relative: bool) -> str:
+    """The budget as the caller gave it, in words."""
+    if error is not None:
+        return f"{error:g} x S" if relative else (error if isinstance(error, str) else f"{error:g}")
+    return f"{size / 8:g} bytes"
+
+
+def _check_scene_arguments(
+    error: float | None,
+    size: float | None,
+    codec: str,
+    normal_tolerance: float,
+    output: str | Path | None,
+) -> tuple[str, float]:
+    """The constraint and its budget (as given), every argument checked."""
+    given = [n for n, v in (("error", error), ("size", size)) if v is not None]
+    if len(given) != 1:
+        raise MeshbitsError(f"give exactly one of error, size (got {given or 'none'})")
+    if codec not in CODECS:
+        raise MeshbitsError(f"codec must be one of {CODECS}, got {codec!r}")
+    budget = budget_number(given[0], error if error is not None else size)
+    if not (math.isfinite(budget) and budget > 0):
+        raise MeshbitsError(f"the {given[0]} budget must be a positive finite number, got {budget}")
+    if not (0 < normal_tolerance < 90):
+        raise MeshbitsError(f"normal_tolerance must be in (0, 90) degrees, got {normal_tolerance}")
+    if output is not None and Path(output).suffix.lower() not in (".glb", ".gltf"):
+        raise MeshbitsError(f"a scene is written as .glb or .gltf, not {Path(output).suffix}")
+    return given[0], budget
+
+
+def _size_search(document, jobs, budget, codec, seed, certify, run_at, world_size):
+    """A size budget (bits): one primitive's own size search, or the common world error
+    that fills the file (:func:`_split_size`). Returns the outcomes and that error."""
+
+    def file_bytes(outcomes: list[Outcome]) -> int:
+        encodings, _, _ = _final_encodings(jobs, outcomes, codec, False, 0.0, 0.0, False)
+        return _output_size(*_rebuild(document, jobs, encodings, codec), ".glb")
+
+    fixed = _fixed_bytes(document, jobs)
+    if budget / 8 - fixed <= 0:
+        images = len(document.json.get("images", []))
+        parts = (
+            f"{images} image{'' if images == 1 else 's'}, its JSON and other data"
+            if images
+            else "its JSON and other data"
+        )
+        raise MeshbitsError(
+            f"the size budget ({budget / 8:.6g} bytes) is less than what the output keeps "
+            f"whatever its geometry: {parts} ({fixed} bytes)"
+        )
+    if len(jobs) == 1:
+        return _size_one(jobs[0], budget, fixed, codec, seed, certify, file_bytes)
+    return _split_size(jobs, budget, run_at, world_size, file_bytes)
+
+
+def _final_encodings(
+    jobs: list[_Job],
+    outcomes: list[Outcome],
+    codec: str,
+    certify: bool,
+    target_error: float,
+    margin: float,
+    measure: bool = True,
+) -> tuple[list[Encoding | None], list[float], list[float | None]]:
+    """Each job's encoding, measured error and certified bound (None where not
+    certified; None encodings for jobs kept as they were): with meshopt, quantized again
+    on one grid per cluster (:func:`_shared_grids`)."""
+    measured = [0.0 if o[0] is None else o[0].measured_error for o in outcomes]
+    uppers = [None if o[0] is None or not certify else o[0].measured_error_upper for o in outcomes]
     encodings = [o[1] for o in outcomes]
     if codec == "meshopt":
-        local_budgets = [target_error / job.scale for job in jobs] if certify else None
-        encodings, measured, uppers = _shared_grids(jobs, outcomes, local_budgets)
-    files, size_bytes = _write(document, jobs, encodings, codec, output)
-    reports = []
-    for job, (record, _, _), encoding, error_measured, upper in zip(
-        jobs, outcomes, encodings, measured, uppers, strict=True
-    ):
-        local_budget = target_error / job.scale * (1 + 1e-12)
-        if upper is not None:
-            met = upper <= local_budget
-        else:
-            # Without a bound an error budget is met only when nothing was to be certified;
-            # a size budget's answer can lack one (its refinement is capped).
-            met = error_measured <= local_budget and (not certify or given[0] == "size")
-        reports.append(
-            PrimitiveReport(
-                mesh=job.data.mesh,
-                primitive=job.data.index,
-                name=job.name,
-                instances=job.instances,
-                scale=job.scale,
-                budget=target_error / job.scale,
-                bits=encoding.bits if encoding.bits is not None else record.bits,
-                normal_bits=job.bits.normal
-                if any(n in job.data.attributes for n in ("NORMAL", "TANGENT"))
-                else None,
-                uv_bits=job.bits.uv.get("TEXCOORD_0"),
-                input_vertices=len(job.data.positions),
-                input_distinct_vertices=distinct_vertices(job.data.positions, job.data.attributes),
-                vertices=len(encoding.vertices),
-                faces=len(encoding.faces),
-                bytes=encoding.size_bits // 8,
-                error=error_measured,
-                world_error=error_measured * job.scale,
-                met=met,
-                error_upper=upper,
-                world_error_upper=None if upper is None else upper * job.scale,
-            )
+        budgets = (
+            [max(target_error - margin, target_error / 2) / job.scale for job in jobs]
+            if certify
+            else None
         )
-    for data in kept:
-        reports.append(
-            PrimitiveReport(
-                mesh=data.mesh,
-                primitive=data.index,
-                name=document.json["meshes"][data.mesh].get("name"),
-                instances=len(instances.get(data.mesh, [])),
-                scale=1.0,
-                budget=None,
-                bits=0,
-                normal_bits=None,
-                uv_bits=None,
-                input_vertices=len(data.positions),
-                input_distinct_vertices=distinct_vertices(data.positions, data.attributes),
-                vertices=len(data.positions),
-                faces=len(data.faces),
-                bytes=0,
-                error=0.0,
-                world_error=0.0,
-                met=True,
-                kept="morph targets" if data.morph else "no faces",
-                error_upper=0.0 if certify else None,
-                world_error_upper=0.0 if certify else None,
-            )
-        )
+        encodings, measured, uppers = _shared_grids(jobs, outcomes, budgets, measure)
+    return encodings, measured, uppers
+
+
+def _input_views(document: Document, targets: list[tuple[int, int]]) -> set[int]:
+    """The bufferViews a set of primitives read (attributes, indices, Draco data)."""
+    views: set[int] = set()
+    accessors = document.json.get("accessors", [])
+    for mesh, index in targets:
+        prim = document.json["meshes"][mesh]["primitives"][index]
+        used = list((prim.get("attributes") or {}).values())
+        if prim.get("indices") is not None:
+            used.append(prim["indices"])
+        for accessor in used:
+            spec = accessors[accessor]
+            if spec.get("bufferView") is not None:
+                views.add(spec["bufferView"])
+            for part in ("indices", "values"):
+                view = ((spec.get("sparse") or {}).get(part) or {}).get("bufferView")
+                if view is not None:
+                    views.add(view)
+        draco = (prim.get("extensions") or {}).get("KHR_draco_mesh_compression")
+        if draco is not None:
+            views.add(draco["bufferView"])
+    return views
+
+
+def _keep_what_grows(
+    document: Document, jobs: list[_Job], encodings: list[Encoding | None]
+) -> None:
+    """Keep as they were the jobs of every frame cluster whose compressed data is not
+    smaller than the input data its primitives read (or of which one job is kept: its
+    meshes' frames cannot change)."""
+    clusters: dict[int, list[int]] = {}
+    for i, job in enumerate(jobs):
+        clusters.setdefault(job.cluster, []).append(i)
+    for members in clusters.values():
+        reason = next((jobs[i].kept for i in members if jobs[i].kept), None)
+        if reason is None:
+            views = _input_views(document, [t for i in members for t in jobs[i].targets])
+            before = sum(int(document.json["bufferViews"][v]["byteLength"]) for v in views)
+            after = sum(encodings[i].size_bits // 8 for i in members)  # type: ignore[union-attr]
+            if after >= before:
+                reason = (
+                    f"compressed, it would not be smaller ({after:,} bytes against the "
+                    f"{before:,} of its input)"
+                )
+        if reason is not None:
+            for i in members:
+                jobs[i].kept = jobs[i].kept or reason
+
+
+def _larger_than_input(
+    source: Any, output: Any, input_bytes: int, out: dict[str, Any], data: bytes
+) -> str | None:
+    """Why a glTF input is written as it was: its output would be larger than it."""
+    if not input_bytes or Path(str(source)).suffix.lower() not in (".glb", ".gltf"):
+        return None
+    suffix = Path(output).suffix.lower() if output is not None else ".glb"
+    size = _output_size(out, data, suffix)
+    if size <= input_bytes:
+        return None
+    return f"compressed, the file would be larger than its input ({size:,} > {input_bytes:,} bytes)"
+
+
+def _verbatim(source: Any, output: Any) -> bool:
+    """Whether the input file itself can be the output: a .glb written as .glb."""
+    suffix = Path(output).suffix.lower() if output is not None else ".glb"
+    return suffix == ".glb" and Path(str(source)).suffix.lower() == ".glb"
+
+
+def _kept_error(document: Document, job: _Job, certify: bool) -> tuple[float, float | None]:
+    """The error of a job written as it was (its mesh's units, and the certified bound):
+    none for a glTF's own positions; for another file's, what their float32 copy in the
+    document moved them by."""
+    prim = document.json["meshes"][job.data.mesh]["primitives"][job.data.index]
+    index = (prim.get("attributes") or {}).get("POSITION")
+    if index not in document.exact_positions:
+        return 0.0, 0.0 if certify else None
+    stored = document.accessor(index) - job.offset
+    if np.array_equal(stored, job.data.positions):
+        return 0.0, 0.0 if certify else None
+    reference = _job_reference(job, 0)
+    h = reference.hausdorff((stored, job.data.faces), bounds=certify)
+    return h.distance, None if h.upper is None else float(h.upper)
+
+
+def _job_report(
+    document: Document,
+    job: _Job,
+    outcome: Outcome,
+    encoding: Encoding | None,
+    error: float,
+    upper: float | None,
+    target_error: float,
+    margin: float,
+    certify: bool,
+    constraint: str,
+) -> PrimitiveReport:
+    """One job's line of the report (its first primitive's indices, the others in
+    ``shared_with``)."""
+    compressed = job.kept is None and encoding is not None
+    if not compressed:
+        error, upper = _kept_error(document, job, certify)
+    world_upper = None if upper is None else upper * job.scale + margin
+    if not compressed and upper == 0.0:
+        world_upper = 0.0  # its data and its nodes are as they were
+    limit = target_error * (1 + 1e-12)
+    if not compressed and error == 0.0:
+        met = True
+    elif world_upper is not None:
+        met = world_upper <= limit
+    else:
+        # Without a bound an error budget is met only when nothing was to be certified;
+        # a size budget's answer can lack one (its refinement is capped).
+        met = error * job.scale <= limit and (not certify or constraint == "size")
+    kept_area, kept_extent = (
+        kept_shape((job.data.positions, job.data.faces), (encoding.vertices, encoding.faces))
+        if compressed
+        else (1.0, 1.0)
+    )
+    return PrimitiveReport(
+        kept_area=kept_area,
+        kept_extent=kept_extent,
+        mesh=job.data.mesh,
+        primitive=job.data.index,
+        name=job.name,
+        instances=job.instances,
+        scale=job.scale,
+        budget=target_error / job.scale,
+        bits=(encoding.bits or outcome[0].bits) if compressed else 0,  # type: ignore[union-attr]
+        normal_bits=job.bits.normal
+        if compressed and any(n in job.data.attributes for n in ("NORMAL", "TANGENT"))
+        else None,
+        uv_bits=job.bits.uv.get("TEXCOORD_0") if compressed else None,
+        input_vertices=len(job.data.positions),
+        input_distinct_vertices=distinct_vertices(job.data.positions, job.data.attributes),
+        vertices=distinct_positions(encoding.vertices)  # type: ignore[union-attr]
+        if compressed
+        else len(job.data.positions),
+        faces=len(encoding.faces) if compressed else len(job.data.faces),  # type: ignore[union-attr]
+        bytes=encoding.size_bits // 8 if compressed else 0,  # type: ignore[union-attr]
+        error=error,
+        world_error=error * job.scale,
+        met=met,
+        kept=job.kept,
+        error_upper=upper,
+        world_error_upper=world_upper,
+        shared_with=tuple(job.targets[1:]),
+        skipped=len(job.skipped) if compressed else 0,
+    )
+
+
+def _kept_report(
+    document: Document,
+    data: PrimitiveData,
+    instances: dict[int, list[tuple[int, np.ndarray]]],
+    certify: bool,
+) -> PrimitiveReport:
+    """The report of a primitive with morph targets or no faces, copied as it was."""
+    return PrimitiveReport(
+        mesh=data.mesh,
+        primitive=data.index,
+        name=document.json["meshes"][data.mesh].get("name"),
+        instances=len(instances.get(data.mesh, [])),
+        scale=1.0,
+        budget=None,
+        bits=0,
+        normal_bits=None,
+        uv_bits=None,
+        input_vertices=len(data.positions),
+        input_distinct_vertices=distinct_vertices(data.positions, data.attributes),
+        vertices=len(data.positions),
+        faces=len(data.faces),
+        bytes=0,
+        error=0.0,
+        world_error=0.0,
+        met=True,
+        kept="morph targets" if data.morph else "no faces",
+        error_upper=0.0 if certify else None,
+        world_error_upper=0.0 if certify else None,
+    )
+
+
+def _scene_result(
+    constraint: str,
+    budget: float,
+    certify: bool,
+    codec: str,
+    reports: list[PrimitiveReport],
+    size_bytes: int,
+    input_bytes: int,
+    files: list[str],
+    unit: str,
+    start: float,
+    notes: list[str],
+    budget_text: str,
+) -> SceneResult:
     world_error = max(r.world_error for r in reports)
     bounds = [r.world_error_upper for r in reports if r.world_error_upper is not None]
     world_error_upper = max(bounds) if len(bounds) == len(reports) else None
     bound = "" if world_error_upper is None else f" (certified <= {world_error_upper:.4g})"
-    if given[0] == "error":
+    if constraint == "error":
         met = all(r.met for r in reports)
         sampled = "" if certify or not met else SAMPLED_ONLY
         message = (
@@ -1023,8 +1376,12 @@ def compress_scene(
             f"{size_bytes} bytes, largest world-space error {world_error:.4g}{bound} "
             f"({unit})"
         )
+    message += _kept_note(reports) + _skipped_note(reports) + "".join(f"; {n}" for n in notes)
+    message += lost_geometry_note(
+        min(r.kept_area for r in reports), min(r.kept_extent for r in reports)
+    )
     return SceneResult(
-        constraint=given[0],
+        constraint=constraint,
         budget=budget,
         met=met,
         message=message,
@@ -1037,32 +1394,58 @@ def compress_scene(
         files=tuple(files),
         world_error_upper=world_error_upper,
         length_unit=unit,
+        notes=tuple(notes),
+        budget_text=budget_text,
+        budget_unit="bits" if constraint == "size" else unit,
     )
 
 
+def _kept_note(reports: list[PrimitiveReport]) -> str:
+    """The primitives written as they were, counted by why."""
+    reasons: dict[str, int] = {}
+    for report in reports:
+        if report.kept is not None:
+            count = 1 + len(report.shared_with)
+            reasons[report.kept] = reasons.get(report.kept, 0) + count
+    if not reasons:
+        return ""
+    parts = [f"{n} primitive{'s' if n > 1 else ''}: {why}" for why, n in reasons.items()]
+    return f"; kept as they were: {'; '.join(parts)}"
+
+
+def _skipped_note(reports: list[PrimitiveReport]) -> str:
+    skipped = sum(r.skipped for r in reports)
+    if not skipped:
+        return ""
+    return f"; {skipped} candidate{'s' if skipped > 1 else ''} the codec refused skipped"
+
+
 def _shared_grids(
-    jobs: list[_Job], outcomes, budgets: list[float] | None = None
-) -> tuple[list[Encoding], list[float], list[float | None]]:
-    """meshopt: the primitives of one mesh share one dequantization (their nodes'), so
-    they are quantized again on one cube grid over their boxes, with the bits whose step
-    is at most the finest any of them chose; and measured again (with ``budgets``, one per
-    job, certified again against them). Returns the encodings, their errors and their
-    certified bounds (None where not certified)."""
-    by_mesh: dict[int, list[int]] = {}
-    for i, job in enumerate(jobs):
-        by_mesh.setdefault(job.data.mesh, []).append(i)
+    jobs: list[_Job],
+    outcomes: list[Outcome],
+    budgets: list[float] | None = None,
+    measure: bool = True,
+) -> tuple[list[Encoding | None], list[float], list[float | None]]:
+    """meshopt: the jobs of one cluster share one dequantization (their nodes'), so they
+    are quantized again on one cube grid over their boxes, with the bits whose step is at
+    most the finest any of them chose; and measured again (unless ``measure`` is False;
+    with ``budgets``, one per job, certified again against them). Returns the encodings,
+    their errors and their certified bounds (None where not certified, and for jobs
+    kept as they were)."""
+    clusters: dict[int, list[int]] = {}
+    for i, (job, outcome) in enumerate(zip(jobs, outcomes, strict=True)):
+        if outcome[0] is not None:
+            clusters.setdefault(job.cluster, []).append(i)
     encodings = [o[1] for o in outcomes]
-    measured = [o[0].measured_error for o in outcomes]
-    uppers = [o[0].measured_error_upper for o in outcomes]
-    for members in by_mesh.values():
+    measured = [0.0 if o[0] is None else o[0].measured_error for o in outcomes]
+    uppers = [None if o[0] is None else o[0].measured_error_upper for o in outcomes]
+    for members in clusters.values():
         if len(members) == 1 and not jobs[members[0]].data.skinned:
             encodings[members[0]].bits = outcomes[members[0]][0].bits
             continue
         levels = [outcomes[i][2] for i in members]
         lo = np.min([np.minimum(lv.origin, lv.vertices.min(axis=0)) for lv in levels], axis=0)
         hi = np.max([lv.vertices.max(axis=0) for lv in levels], axis=0)
-        from .quantize import cube_grid
-
         origin, side = cube_grid(lo, np.maximum(hi, lo))
         steps = [
             lv.grid_size / (2 ** outcomes[i][0].bits - 1)
@@ -1079,9 +1462,12 @@ def _shared_grids(
                 origin,
                 side,
                 job.bits,
-                integer_positions=not job.data.skinned,
+                integer_positions=job.framed,
             )
             encoding.bits = bits
+            encodings[i] = encoding
+            if not measure:
+                continue
             assert job.reference is not None
             mesh = (encoding.vertices, encoding.faces)
             if budgets is None:
@@ -1096,7 +1482,6 @@ def _shared_grids(
                 )
                 measured[i] = h.distance
                 uppers[i] = float(h.upper) if h.upper is not None else None
-            encodings[i] = encoding
     return encodings, measured, uppers
 
 
@@ -1111,10 +1496,11 @@ def _decoded_primitives(document: Document, where: str) -> list[PrimitiveData]:
         raise MeshFileError(f"{where}{error}") from error
 
 
-def _world_size(
+def _world_box(
     primitives: list[PrimitiveData], instances: dict[int, list[tuple[int, np.ndarray]]]
-) -> float:
-    """Largest side of the scene's world bounding box."""
+) -> tuple[float, float]:
+    """The largest side of the scene's world bounding box, and the largest absolute world
+    coordinate (world units)."""
     lows, highs = [], []
     for data in primitives:
         for _, matrix in instances.get(data.mesh, [(-1, np.eye(4))]):
@@ -1124,7 +1510,42 @@ def _world_size(
                 highs.append(world.max(axis=0))
     if not lows:
         raise MeshFileError("the scene has no vertices")
-    return float((np.max(highs, axis=0) - np.min(lows, axis=0)).max())
+    lo, hi = np.min(lows, axis=0), np.max(highs, axis=0)
+    return float((hi - lo).max()), float(np.maximum(np.abs(lo), np.abs(hi)).max())
+
+
+def _place_in_frames(jobs: list[_Job], kept: list[PrimitiveData], document: Document) -> None:
+    """Group the jobs into clusters of meshes that must share frames (a job shared by
+    several meshes joins them), mark the clusters whose meshes can take a frame of their
+    own from the nodes that show them (``_Job.framed``), and move those far from the
+    origin to their centre (:func:`meshbits.gltf.frame_centre`; ``_Job.offset``), so that
+    their float32 and quantized positions keep their precision."""
+    parent: dict[int, int] = {}
+
+    def root(mesh: int) -> int:
+        while parent.setdefault(mesh, mesh) != mesh:
+            mesh = parent[mesh]
+        return mesh
+
+    for job in jobs:
+        first, *others = sorted(job.meshes)
+        for mesh in others:
+            parent[root(mesh)] = root(first)
+    clusters: dict[int, list[_Job]] = {}
+    for job in jobs:
+        clusters.setdefault(root(min(job.meshes)), []).append(job)
+    unframed = document.instanced_meshes() | {data.mesh for data in kept}
+    for number, members in enumerate(clusters.values()):
+        meshes = {mesh for job in members for mesh in job.meshes}
+        framed = not (meshes & unframed) and not any(job.data.skinned for job in members)
+        centre = np.zeros(3)
+        if framed:
+            centre = frame_centre(np.concatenate([job.data.positions for job in members]))
+        for job in members:
+            job.cluster, job.framed = number, framed
+            if centre.any():
+                job.offset = centre
+                job.data = replace(job.data, positions=job.data.positions - centre)
 
 
 def _split_size(jobs, size_bits, run_at, world_size, file_bytes):
@@ -1148,7 +1569,12 @@ def _split_size(jobs, size_bits, run_at, world_size, file_bytes):
         tried.append((error, total))
         if total <= budget_bytes:
             measured = max(
-                o[0].measured_error * job.scale for o, job in zip(outcomes, jobs, strict=True)
+                (
+                    o[0].measured_error * job.scale
+                    for o, job in zip(outcomes, jobs, strict=True)
+                    if o[0] is not None
+                ),
+                default=0.0,
             )
             if best is None or measured < best[0]:
                 best = (measured, outcomes, error)
@@ -1185,9 +1611,11 @@ def _size_one(
     error), in world units."""
     budget_bytes = size_bits / 8
     share = budget_bytes - fixed
-    outcome = None
+    outcome = KEPT
     for _ in range(SIZE_ONE_TRIES):
         outcome = _search_primitive(job, 8 * share, codec, seed, certify, "size")
+        if outcome[0] is None:
+            return [outcome], 0.0
         primitive = outcome[1].size_bits // 8
         total = file_bytes([outcome])
         if total <= budget_bytes:
@@ -1195,7 +1623,6 @@ def _size_one(
         share = primitive - (total - budget_bytes) - SIZE_ONE_MARGIN
         if share <= 0:
             break
-    assert outcome is not None
     record = outcome[0]
     upper = record.measured_error_upper
     error = record.measured_error if upper is None else upper
@@ -1228,18 +1655,28 @@ def _fixed_bytes(document: Document, jobs: list[_Job]) -> int:
     compressed primitive, plus the JSON (estimated at its input size)."""
     replaced = set()
     for job in jobs:
-        prim = document.json["meshes"][job.data.mesh]["primitives"][job.data.index]
-        replaced.update(prim.get("attributes", {}).values())
-        if prim.get("indices") is not None:
-            replaced.add(prim["indices"])
+        for mesh, index in job.targets:
+            prim = document.json["meshes"][mesh]["primitives"][index]
+            replaced.update(prim.get("attributes", {}).values())
+            if prim.get("indices") is not None:
+                replaced.add(prim["indices"])
     views = set()
     for i, acc in enumerate(document.json.get("accessors", [])):
         if i not in replaced and acc.get("bufferView") is not None:
             views.add(acc["bufferView"])
     total = sum(int(document.json["bufferViews"][v]["byteLength"]) for v in views)
-    for i in range(len(document.json.get("images", []))):
+    images = {_image_key(document, i): i for i in range(len(document.json.get("images", [])))}
+    for i in images.values():
         total += len(document.image_bytes(i)[0])
     return total + len(json.dumps(document.json))
+
+
+def _image_key(document: Document, index: int) -> tuple[str, Any]:
+    """What an image's data is: its bufferView or its URI (images sharing it share it)."""
+    image = document.json["images"][index]
+    if image.get("bufferView") is not None:
+        return ("view", image["bufferView"])
+    return ("uri", image.get("uri"))
 
 
 # --- writing ------------------------------------------------------------------------------
@@ -1266,15 +1703,23 @@ class _Blob:
         return b"".join(self.parts) + b"\0" * ((-self.length) % 4)
 
 
-def _write(document: Document, jobs, encodings, codec: str, output) -> tuple[list[str], int]:
-    """Rebuild the document with the compressed primitives; write it when asked; return
-    the files and the size of the output."""
+def _rebuild(
+    document: Document, jobs: list[_Job], encodings: list[Encoding | None], codec: str
+) -> tuple[dict[str, Any], bytes]:
+    """The document (JSON) and its binary buffer with the compressed primitives: each
+    job's data once, every primitive of its ``targets`` pointing at it; the primitives of
+    jobs kept as they were, and everything else, copied."""
     out = copy.deepcopy(document.json)
     blob = _Blob()
     fallback = _Blob()
     views: list[dict[str, Any]] = []
     accessors: list[dict[str, Any]] = []
-    replaced = {(job.data.mesh, job.data.index) for job in jobs}
+    compressed = [
+        (job, encoding)
+        for job, encoding in zip(jobs, encodings, strict=True)
+        if job.kept is None and encoding is not None
+    ]
+    replaced = {target for job, _ in compressed for target in job.targets}
     view_map: dict[int, int] = {}
 
     def copy_view(old: int) -> int:
@@ -1340,24 +1785,21 @@ def _write(document: Document, jobs, encodings, codec: str, output) -> tuple[lis
             instancing["attributes"] = {
                 k: copy_accessor(v) for k, v in instancing.get("attributes", {}).items()
             }
+    # Images that share their data (one bufferView, or one URI) keep sharing it.
+    image_views: dict[Any, int] = {}
     for i, image in enumerate(out.get("images", [])):
         data, mime = document.image_bytes(i)
+        key = _image_key(document, i)
+        if key not in image_views:
+            views.append({"buffer": 0, "byteOffset": blob.add(data), "byteLength": len(data)})
+            image_views[key] = len(views) - 1
         image.pop("uri", None)
-        image["bufferView"] = len(views)
-        views.append({"buffer": 0, "byteOffset": blob.add(data), "byteLength": len(data)})
+        image["bufferView"] = image_views[key]
         if mime:
             image["mimeType"] = mime
 
-    dequantize: dict[int, tuple[np.ndarray, float]] = {}
-    for job, encoding in zip(jobs, encodings, strict=True):
-        prim = out["meshes"][job.data.mesh]["primitives"][job.data.index]
-        extensions = prim.get("extensions") or {}
-        extensions.pop("KHR_draco_mesh_compression", None)
-        if extensions:
-            prim["extensions"] = extensions
-        else:
-            prim.pop("extensions", None)
-        prim["mode"] = 4
+    frames: dict[int, tuple[np.ndarray, float]] = {}
+    for job, encoding in compressed:
         attributes = {}
         for name, spec in encoding.accessors.items():
             if name == "indices":
@@ -1365,8 +1807,8 @@ def _write(document: Document, jobs, encodings, codec: str, output) -> tuple[lis
             accessors.append(dict(spec))
             attributes[name] = len(accessors) - 1
         accessors.append(dict(encoding.accessors["indices"]))
-        prim["indices"] = len(accessors) - 1
-        prim["attributes"] = attributes
+        indices = len(accessors) - 1
+        draco = None
         if codec == "draco":
             views.append(
                 {
@@ -1375,7 +1817,7 @@ def _write(document: Document, jobs, encodings, codec: str, output) -> tuple[lis
                     "byteLength": len(encoding.draco),
                 }
             )
-            prim.setdefault("extensions", {})["KHR_draco_mesh_compression"] = {
+            draco = {
                 "bufferView": len(views) - 1,
                 "attributes": {name: encoding.draco_ids[name] for name in attributes},
             }
@@ -1403,12 +1845,17 @@ def _write(document: Document, jobs, encodings, codec: str, output) -> tuple[lis
                     view["byteStride"] = stream["stride"]
                 views.append(view)
                 index = len(views) - 1
-                key = prim["indices"] if stream["name"] == "indices" else attributes[stream["name"]]
+                key = indices if stream["name"] == "indices" else attributes[stream["name"]]
                 accessors[key]["bufferView"] = index
+        for mesh, number in job.targets:
+            _point_at(out["meshes"][mesh]["primitives"][number], attributes, indices, draco)
             if encoding.dequantize is not None:
-                dequantize[job.data.mesh] = encoding.dequantize
-    if codec == "meshopt" and dequantize:
-        _apply_dequantization(out, document, dequantize)
+                origin, step = encoding.dequantize
+                frames[mesh] = (job.offset + origin, step)
+            elif job.offset.any():
+                frames[mesh] = (job.offset, 1.0)
+    if frames:
+        _apply_frames(out, document, frames)
     out["accessors"] = accessors
     out["bufferViews"] = views
     extensions_used = set(out.get("extensionsUsed", []))
@@ -1428,11 +1875,13 @@ def _write(document: Document, jobs, encodings, codec: str, output) -> tuple[lis
     new = {"KHR_draco_mesh_compression"} if codec == "draco" else {"EXT_meshopt_compression"}
     if codec == "meshopt":
         new.add("KHR_mesh_quantization")
+    if not compressed:
+        new = set()
     out["extensionsUsed"] = sorted(extensions_used | new)
     out["extensionsRequired"] = sorted(extensions_required | new)
     data = blob.bytes()
     buffers = [{"byteLength": len(data)}]
-    if codec == "meshopt":
+    if codec == "meshopt" and compressed:
         buffers.append(
             {
                 "byteLength": fallback.length + (-fallback.length) % 4,
@@ -1441,9 +1890,49 @@ def _write(document: Document, jobs, encodings, codec: str, output) -> tuple[lis
         )
     out["buffers"] = buffers
     out.setdefault("asset", {})["generator"] = "meshbits"
+    return out, data
+
+
+def _point_at(
+    prim: dict[str, Any],
+    attributes: dict[str, int],
+    indices: int,
+    draco: dict[str, Any] | None,
+) -> None:
+    """Point a primitive at its compressed accessors (and Draco data)."""
+    extensions = prim.get("extensions") or {}
+    extensions.pop("KHR_draco_mesh_compression", None)
+    if draco is not None:
+        extensions["KHR_draco_mesh_compression"] = dict(draco)
+    if extensions:
+        prim["extensions"] = extensions
+    else:
+        prim.pop("extensions", None)
+    prim["mode"] = 4
+    prim["attributes"] = dict(attributes)
+    prim["indices"] = indices
+
+
+def _output_size(out: dict[str, Any], data: bytes, suffix: str) -> int:
+    """Bytes of the file :func:`_emit` writes: a GLB, or a ``.gltf``'s JSON and buffer."""
+    if suffix == ".gltf":
+        named = {**out, "buffers": [{**out["buffers"][0], "uri": "x.bin"}, *out["buffers"][1:]]}
+        return len(json.dumps(named, separators=(",", ":")).encode()) + len(data)
+    return len(_glb(out, data))
+
+
+def _emit(
+    out: dict[str, Any], data: bytes, output: str | Path | None, verbatim: bytes | None = None
+) -> tuple[list[str], int]:
+    """Write the document (atomically), as GLB or as ``.gltf`` with its buffer beside it
+    named after it; or ``verbatim``, the input's own bytes. Returns the files and the
+    output's size."""
     if output is None:
-        return [], len(_glb(out, data))
+        return [], len(verbatim) if verbatim is not None else len(_glb(out, data))
     path = Path(output)
+    if verbatim is not None:
+        write_atomic(path, verbatim)
+        return [str(path)], len(verbatim)
     if path.suffix.lower() == ".glb":
         glb = _glb(out, data)
         write_atomic(path, glb)
@@ -1470,25 +1959,29 @@ def _glb(document: dict[str, Any], binary: bytes) -> bytes:
     return b"".join(parts)
 
 
-def _apply_dequantization(
-    out: dict[str, Any], document: Document, dequantize: dict[int, tuple[np.ndarray, float]]
+def _apply_frames(
+    out: dict[str, Any], document: Document, frames: dict[int, tuple[np.ndarray, float]]
 ) -> None:
-    """Integer position codes need ``origin + code * step``: folded into the nodes that
-    show the mesh, or, for a node with children, an animation or a skin, into a new child
-    node that takes the mesh over."""
+    """A mesh whose positions are stored in a frame of their own (``mesh -> (origin,
+    step)``: a reader places ``origin + step * stored``; integer codes with meshopt,
+    positions relative to their centre with Draco) has it folded into the nodes that show
+    it, or, for a node that carries more than the mesh (children, an animation, a skin, a
+    camera, extensions), into a new child node that takes the mesh over."""
     animated = document.animated_nodes()
     nodes = out.setdefault("nodes", [])
     for index in range(len(nodes)):
         node = nodes[index]
         mesh = node.get("mesh")
-        if mesh is None or mesh not in dequantize:
+        if mesh is None or mesh not in frames:
             continue
-        origin, step = dequantize[mesh]
-        if node.get("children") or index in animated or node.get("skin") is not None:
-            child = {"mesh": mesh, "translation": [float(x) for x in origin], "scale": [step] * 3}
-            for key in ("weights",):
-                if key in node:
-                    child[key] = node.pop(key)
+        origin, step = frames[mesh]
+        alone = set(node) <= {"mesh", "name", "translation", "rotation", "scale", "matrix"}
+        if not alone or index in animated:
+            child: dict[str, Any] = {"mesh": mesh, "translation": [float(x) for x in origin]}
+            if step != 1.0:
+                child["scale"] = [step] * 3
+            if "weights" in node:
+                child["weights"] = node.pop("weights")
             node.pop("mesh")
             nodes.append(child)
             node.setdefault("children", []).append(len(nodes) - 1)
@@ -1502,7 +1995,8 @@ def _apply_dequantization(
         else:
             rotation_scale = local[:3, :3]
             node["translation"] = [float(x) for x in local[:3, 3] + rotation_scale @ origin]
-            node["scale"] = [float(s) * step for s in node.get("scale", [1.0, 1.0, 1.0])]
+            if step != 1.0:
+                node["scale"] = [float(s) * step for s in node.get("scale", [1.0, 1.0, 1.0])]
 
 
 #: Inputs that can hold more than positions and faces (materials, textures, UVs, normals,
@@ -1595,6 +2089,9 @@ def scene_info(path: str | Path) -> dict[str, Any]:
                     "attributes": attributes,
                     "material": prim.get("material"),
                     "morph_targets": len(prim.get("targets", [])),
+                    "morph_target_attributes": sorted(
+                        {name for target in prim.get("targets", []) for name in target}
+                    ),
                     "extensions": extensions,
                 }
             )
@@ -1667,11 +2164,42 @@ def scene_info(path: str | Path) -> dict[str, Any]:
         "samplers": len(j.get("samplers", [])),
         "skins": len(j.get("skins", [])),
         "animations": len(j.get("animations", [])),
+        "skin_details": [
+            {"skin": i, "name": skin.get("name"), "joints": len(skin.get("joints", []))}
+            for i, skin in enumerate(j.get("skins", []))
+        ],
+        "animation_details": [
+            _animation_info(document, i) for i in range(len(j.get("animations", [])))
+        ],
         "cameras": len(j.get("cameras", [])),
         "extensions_used": j.get("extensionsUsed", []),
         "extensions_required": j.get("extensionsRequired", []),
         "bytes_by_part": sizes,
         "json_bytes": _json_bytes(Path(path), j),
+    }
+
+
+def _animation_info(document: Document, index: int) -> dict[str, Any]:
+    """An animation's name, its channels by target path, its keyframes (the samplers'
+    inputs, counted) and its duration (seconds, the largest input time)."""
+    animation = document.json["animations"][index]
+    paths: dict[str, int] = {}
+    for channel in animation.get("channels", []):
+        path = (channel.get("target") or {}).get("path", "?")
+        paths[path] = paths.get(path, 0) + 1
+    keyframes, duration = 0, 0.0
+    for sampler in animation.get("samplers", []):
+        times = document.accessor(sampler["input"])
+        keyframes += len(times)
+        if len(times):
+            duration = max(duration, float(np.max(times)))
+    return {
+        "animation": index,
+        "name": animation.get("name"),
+        "channels": len(animation.get("channels", [])),
+        "paths": paths,
+        "keyframes": keyframes,
+        "duration": duration,
     }
 
 

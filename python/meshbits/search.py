@@ -51,8 +51,9 @@ import numpy as np
 from . import model
 from .constants import MODEL_MIN_BITS, MODEL_MIN_VERTICES
 from .encode import Encoded, encode
+from .errors import MeshbitsError
 from .hausdorff import ClosestPoints, Hausdorff, Reference
-from .mesh import all_faces_degenerate, as_mesh, referenced
+from .mesh import all_faces_degenerate, as_mesh, distinct_positions, referenced
 from .quantize import cube_grid
 from .results import Progress, ProgressCallback
 from .simplify import Simplifier, closest_level, simplify
@@ -440,6 +441,10 @@ class Attributes:
 Codec = Callable[..., Any]
 
 
+class Refused(MeshbitsError):
+    """The encoder cannot encode a candidate (Draco refusing a mesh, say)."""
+
+
 @dataclass(frozen=True)
 class _Candidate:
     level: int
@@ -544,6 +549,8 @@ class Search:
         self.available = len(self.used)
         self.levels: list[Level] = []
         self.measurements: list[Iteration] = []
+        #: ``(level, bits) -> why`` of each candidate the encoder refused (skipped).
+        self.refused: dict[tuple[int, int], str] = {}
         self.seconds = {"simplify": 0.0, "encode": 0.0, "hausdorff": 0.0, "estimate": 0.0}
         self.plan = self._first_plan()
         #: Quick estimate of each simplifier tried by ``"auto"`` (length).
@@ -828,45 +835,85 @@ class Search:
         return 0.5 * self.k * self.grid_size / (3.0 * math.sqrt(3.0) * tessellation)
 
     def _encoded(self, index: int, bits: int) -> Encoded:
+        """Level ``index`` encoded at ``bits`` (built once). Raises :class:`Refused` when
+        the encoder cannot encode it (recorded in :attr:`refused`)."""
         level = self.levels[index]
+        if (index, bits) in self.refused:
+            raise Refused(self.refused[(index, bits)])
         if bits not in level.encodings:
             begin = time.perf_counter()
-            if self.codec is not None:
-                level.encodings[bits] = self.codec(
-                    level.vertices,
-                    level.faces,
-                    level.attributes,
-                    bits,
-                    level.origin,
-                    level.grid_size,
-                )
-            else:
-                level.encodings[bits] = encode(
-                    (level.vertices, level.faces),
-                    bits,
-                    format=self.format,
-                    origin=level.origin,
-                    grid_size=level.grid_size,
-                )
-            self.seconds["encode"] += time.perf_counter() - begin
+            try:
+                if self.codec is not None:
+                    level.encodings[bits] = self.codec(
+                        level.vertices,
+                        level.faces,
+                        level.attributes,
+                        bits,
+                        level.origin,
+                        level.grid_size,
+                    )
+                else:
+                    level.encodings[bits] = encode(
+                        (level.vertices, level.faces),
+                        bits,
+                        format=self.format,
+                        origin=level.origin,
+                        grid_size=level.grid_size,
+                    )
+            except MeshbitsError as err:
+                self.refused[(index, bits)] = str(err)
+                raise Refused(str(err)) from err
+            finally:
+                self.seconds["encode"] += time.perf_counter() - begin
+            decoded = level.encodings[bits]
+            if all_faces_degenerate(decoded.vertices, decoded.faces):
+                # Nothing of the surface is left once decoded (a grid coarser than the
+                # mesh): no measurement can make it an answer.
+                del level.encodings[bits]
+                why = f"at {bits} bits every decoded face is degenerate (no surface left)"
+                self.refused[(index, bits)] = why
+                raise Refused(why)
         return level.encodings[bits]
 
-    def _candidate(self, index: int, bits: int) -> _Candidate:
+    def _size_of(self, index: int, bits: int) -> float:
+        """Bits of level ``index`` encoded at ``bits``; infinite when it cannot be."""
+        try:
+            return float(self._encoded(index, bits).size_bits)
+        except Refused:
+            return math.inf
+
+    def _candidate(self, index: int, bits: int) -> _Candidate | None:
+        """Level ``index`` at ``bits``, encoded, with its predicted error; None when the
+        encoder cannot encode it."""
         level = self.levels[index]
         error = level.errors.get(bits)
         if error is None:
             q = quantization_error(bits, level.grid_size)
             error = combined_error(self.tessellation(level), q, self.delta(level))
-        return _Candidate(index, bits, float(self._encoded(index, bits).size_bits), error)
+        size = self._size_of(index, bits)
+        if not math.isfinite(size):
+            return None
+        return _Candidate(index, bits, size, error)
 
     def _tried(self, index: int, bits: int) -> bool:
-        return bits in self.levels[index].errors
+        return bits in self.levels[index].errors or (index, bits) in self.refused
 
     # --- planning -----------------------------------------------------------------------
 
     def propose(self) -> _Candidate | None:
         """The next candidate to measure (built and encoded), or None when none promises
-        :data:`STOP_GAIN` over the best result so far."""
+        :data:`STOP_GAIN` over the best result so far. Raises :class:`Refused` when the
+        encoder refuses every candidate of the first pass."""
+        candidate = self._propose()
+        if candidate is None and not self.measurements:
+            reasons = sorted(set(self.refused.values()))
+            raise Refused(
+                f"the encoder refused every candidate ({len(self.refused)} tried): "
+                + "; ".join(reasons[:3])
+            )
+        return candidate
+
+    def _propose(self) -> _Candidate | None:
         if self.constraint == "vertices":
             return None if self.measurements else self._vertices_candidate()
         first_met = next(
@@ -915,6 +962,8 @@ class Search:
                 if level.source == "original" and not self._original_worth_encoding(bits):
                     continue
                 candidate = self._candidate(index, bits)
+                if candidate is None:
+                    continue
                 if candidate.error <= EXPLORE_WIDE * self.budget and candidate.size_bits < limit:
                     wide.append(candidate)
         return min(wide, key=lambda c: (c.size_bits, c.error), default=None)
@@ -942,7 +991,9 @@ class Search:
         for index in [finest, 0] if finest is not None else [0]:
             for bits in range(first, self.max_bits + 1):
                 if not self._tried(index, bits) and self._may_meet(self.levels[index], bits):
-                    return self._candidate(index, bits)
+                    candidate = self._candidate(index, bits)
+                    if candidate is not None:
+                        return candidate
         return None
 
     def _clearing(self, best: Iteration | None) -> _Candidate | None:
@@ -1007,7 +1058,7 @@ class Search:
                 if level.source == "original" and not self._original_worth_encoding(bits):
                     continue
                 candidate = self._candidate(index, bits)
-                if candidate.error <= aim:
+                if candidate is not None and candidate.error <= aim:
                     out.append(candidate)
         return out
 
@@ -1062,12 +1113,14 @@ class Search:
         self._original_most_bits()
         for index, level in enumerate(self.levels):
             for bits in [b for b, e in level.encodings.items() if e.size_bits <= self.budget]:
-                self._encoded(index, self._stored_bits(bits))
+                self._size_of(index, self._stored_bits(bits))
         out = []
         for index, level in enumerate(self.levels):
-            for bits, encoded in level.encodings.items():
+            for bits, encoded in list(level.encodings.items()):
                 if encoded.size_bits <= self.budget and not self._tried(index, bits):
-                    out.append(self._candidate(index, bits))
+                    candidate = self._candidate(index, bits)
+                    if candidate is not None:
+                        out.append(candidate)
         return out
 
     def _original_most_bits(self) -> None:
@@ -1088,7 +1141,7 @@ class Search:
                 i
                 for i, level in enumerate(self.levels)
                 if level.vertex_count <= CHEAP_VERTICES or bits in level.encodings
-                if self._encoded(i, bits).size_bits <= self.budget
+                if self._size_of(i, bits) <= self.budget
             ]
             return max(fitting, key=lambda i: self.levels[i].vertex_count, default=None)
         if self._original_fits(bits):
@@ -1102,7 +1155,7 @@ class Search:
             index = self._simplified(method, vertices=vertices, aim=self._fit_aim(vertices))
             if index is None or index == 0:
                 break
-            size = self._encoded(index, bits).size_bits
+            size = self._size_of(index, bits)
             count = self.levels[index].vertex_count
             if size <= self.budget:
                 if fitting is None or count > self.levels[fitting].vertex_count:
@@ -1142,7 +1195,7 @@ class Search:
             ]
             if not rates or 0.5 * min(rates) * self.available > self.budget:
                 return False
-        return self._encoded(0, bits).size_bits <= self.budget
+        return self._size_of(0, bits) <= self.budget
 
     def _rate(self, bits: int) -> float:
         """Bits per vertex of a simplified level at ``bits``: the encodings seen at that
@@ -1162,7 +1215,7 @@ class Search:
             return float(scale * paper)
         return paper
 
-    def _vertices_candidate(self) -> _Candidate:
+    def _vertices_candidate(self) -> _Candidate | None:
         assert self.plan is not None
         bits = int(np.clip(self.plan.whole_bits, 1, self.max_bits))
         target = min(self.budget, self.available)
@@ -1179,25 +1232,32 @@ class Search:
             index = 0
             for _ in range(VERTEX_TRIES):
                 index = self._simplified(method, vertices=aim) or 0
-                count = len(self._encoded(index, bits).vertices)
+                try:
+                    count = distinct_positions(self._encoded(index, bits).vertices)
+                except Refused:
+                    break
                 if index == 0 or count <= self.budget:
                     break
                 # At least 4% lower: a level within 3% of the target is reused.
                 aim *= min(0.96, 0.99 * self.budget / count)
         return self._candidate(index, bits)
 
-    def _fallback(self) -> _Candidate:
+    def _fallback(self) -> _Candidate | None:
         """Nothing is expected to meet the budget: the most accurate output for an error
-        budget, the smallest for a size budget."""
+        budget, the smallest for a size budget (at the next B where the encoder refuses
+        one); None when the encoder refuses every B."""
         if self.constraint == "error":
             fitting = self._error_bits()
-            return self._candidate(0, fitting[0] if len(fitting) else self.max_bits)
+            first = fitting[0] if len(fitting) else self.max_bits
+            order = [*range(first, self.max_bits + 1), *range(first - 1, 0, -1)]
+            return next(filter(None, (self._candidate(0, b) for b in order)), None)
         index = None
         if self._can_simplify():
             index = self._simplified(self.simplifier_method(), vertices=MODEL_MIN_VERTICES)
         if index is None:
             index = min(range(len(self.levels)), key=lambda i: self.levels[i].vertex_count)
-        return self._candidate(index, int(MODEL_MIN_BITS))
+        order = range(int(MODEL_MIN_BITS), self.max_bits + 1)
+        return next(filter(None, (self._candidate(index, b) for b in order)), None)
 
     # --- measuring ----------------------------------------------------------------------
 
@@ -1223,7 +1283,7 @@ class Search:
         elif self.constraint == "size":
             met = encoded.size_bits <= self.budget
         else:
-            met = len(encoded.vertices) <= self.budget
+            met = distinct_positions(encoded.vertices) <= self.budget
         record = Iteration(
             level=candidate.level,
             source=level.source,
@@ -1233,7 +1293,7 @@ class Search:
                 if self.constraint == "vertices" and self.plan is not None
                 else level.vertex_count
             ),
-            vertices=len(encoded.vertices),
+            vertices=distinct_positions(encoded.vertices),
             faces=len(encoded.faces),
             predicted_error=candidate.error,
             predicted_size_bits=candidate.size_bits,
