@@ -5,6 +5,7 @@ pygltflib, DracoPy and the meshopt package (tests/independent.py)."""
 
 from __future__ import annotations
 
+import importlib
 import json
 from pathlib import Path
 
@@ -17,6 +18,8 @@ from test_scene import _Builder, uv_sphere
 import meshbits
 from meshbits.cli import main
 from meshbits.scene import AttributeBits, compress_scene, encode_draco_primitive
+
+batch_module = importlib.import_module("meshbits.batch")
 
 DATA = Path(__file__).parent / "data"
 
@@ -219,3 +222,65 @@ def test_an_obj_without_its_material_library_gains_no_texture(tmp_path, capsys):
     )
     doc, _ = read_gltf(out)
     assert not doc.get("images") and not doc.get("textures") and not doc.get("materials")
+
+
+def test_a_draco_point_cloud_is_said_to_hold_no_triangles(tmp_path, capsys):
+    """batch and info called a valid Draco point cloud "damaged or not a valid DRC file
+    (AttributeError ...)"."""
+    import DracoPy
+
+    cloud = tmp_path / "cloud.drc"
+    cloud.write_bytes(DracoPy.encode(np.random.default_rng(0).random((50, 3))))
+    for command in ("info", "k"):
+        assert main([command, str(cloud)]) == 2
+        err = capsys.readouterr().err
+        assert "Draco point cloud (50 points, no faces)" in err and "damaged" not in err
+
+
+def test_an_objs_material_library_and_textures_count_in_its_bytes_and_digest(tmp_path):
+    """A changed texture of an OBJ was not redone by a resumed batch."""
+    from test_scene import textured_obj
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    obj = textured_obj(folder, 8, 16, 8)
+    whole = sum(p.stat().st_size for p in folder.iterdir())
+    assert meshbits.gltf.asset_bytes(obj) == whole
+    before = batch_module.input_digest(obj)
+    (folder / "checker.png").write_bytes((folder / "checker.png").read_bytes() + b"\0")
+    assert batch_module.input_digest(obj) != before
+    out = tmp_path / "out"
+    first = meshbits.batch(folder, out, error=0.01, relative=True, format="glb", workers=1)
+    assert first.rows[0].input_bytes == whole + 1
+    (folder / "checker.png").write_bytes((folder / "checker.png").read_bytes() + b"\0")
+    again = meshbits.batch(folder, out, error=0.01, relative=True, format="glb", workers=1)
+    assert again.ran == 1 and again.resumed == 0
+
+
+def test_batch_takes_an_error_with_a_unit_as_compress_does(tmp_path):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    (folder / "bunny.ply").write_bytes((DATA / "bunny_res4.ply").read_bytes())
+    result = meshbits.batch(folder, tmp_path / "out", error="5mm", workers=1)
+    assert result.rows[0].budget == pytest.approx(0.005)
+    with pytest.raises(meshbits.MeshbitsError, match="has a unit"):
+        meshbits.batch(folder, tmp_path / "out2", error="5mm", relative=True, workers=1)
+
+
+def test_a_scenes_report_names_its_budget_as_given(tmp_path):
+    source = shared_scene(tmp_path / "s.glb", meshes=1)
+    report = compress_scene(source, error=0.01, relative=True).to_dict()
+    assert (report["budget_text"], report["budget_unit"]) == ("0.01 x S", "m")
+    report = compress_scene(source, size=8 * 20_000).to_dict()
+    assert (report["budget_text"], report["budget_unit"]) == ("20000 bytes", "bits")
+
+
+def test_the_reported_vertex_count_never_exceeds_the_inputs():
+    """Draco decodes the bunny's 453 vertices as 649 or more points (it splits the
+    vertices of boundaries and non-manifold edges): V counts positions."""
+    vertices, faces = meshbits.load_mesh(DATA / "bunny_res4.ply")
+    result = meshbits.compress((vertices, faces), error=1e-4, relative=True)
+    assert result.source == "original" and len(result.vertices) > len(vertices)
+    assert result.vertex_count <= len(vertices)
+    assert result.to_dict()["vertices"] == result.vertex_count
+    assert result.iterations[-1].vertices <= len(vertices)
