@@ -213,3 +213,16 @@ def test_an_output_that_lost_the_geometry_says_so():
     result = meshbits.compress(meshbits.load_mesh(meshbits.example_mesh_path()), size=8 * 400)
     assert 0.5 < result.kept_area < 2 and 0.9 < result.kept_extent < 1.1
     assert "lost" not in result.message
+
+
+@pytest.mark.parametrize("suffix", [".obj", ".off", ".stl"])
+def test_text_and_stl_outputs_hold_the_decoded_positions_exactly(tmp_path, bunny, suffix):
+    """An OBJ kept 8 decimals (trimesh's default): a mesh 1e-7 in size lost its shape."""
+    vertices, faces = bunny
+    for scale, offset in ((1e-7, 0.0), (1.0, 3e5)):
+        result = meshbits.compress((vertices * scale + offset, faces), error=0.01, relative=True)
+        path = meshbits.io.save_mesh(tmp_path / f"out{suffix}", result.vertices, result.faces)
+        written, _ = read_output(path)
+        # Every written position is a decoded one, exactly (an STL's corners come back
+        # once per face).
+        assert set(map(tuple, written)) == set(map(tuple, result.vertices))

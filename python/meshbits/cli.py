@@ -320,7 +320,7 @@ def _run_demo(args: argparse.Namespace) -> int:
 
 _FORMATS = {".drc": "draco", ".ply": "ply"}
 _SCENE_FORMATS = (".glb", ".gltf")
-_TRIMESH_FORMATS = (".obj", ".off", ".stl")
+_UNSIZED_FORMATS = (".obj", ".off", ".stl")
 #: What ``save_mesh`` writes (``meshbits quantize -o``).
 _MESH_OUTPUTS = (".ply", ".obj", ".off", ".stl", ".glb", ".gltf")
 
@@ -359,7 +359,7 @@ def _add_compress(sub: argparse._SubParsersAction) -> None:
         type=Path,
         help="output file: .glb or .gltf (the whole scene, every attribute, material and "
         "node kept, compressed with --codec), .drc (Draco, one merged mesh), .ply (quantized "
-        "PLY); .obj/.off/.stl through trimesh (not with --size: their size is not what "
+        "PLY); .obj/.off/.stl of the decoded mesh (not with --size: their size is not what "
         "the loop measures). Without it nothing is written (a .glb/.gltf input is then "
         "reported as a scene).",
     )
@@ -460,11 +460,11 @@ def _run_compress(args: argparse.Namespace) -> int:
         raise UserError("--codec applies to .glb and .gltf outputs")
     if args.normal_tolerance is not None:
         raise UserError("--normal-tolerance applies to .glb and .gltf outputs")
-    if suffix not in _FORMATS and suffix not in _TRIMESH_FORMATS:
+    if suffix not in _FORMATS and suffix not in _UNSIZED_FORMATS:
         raise UserError(
-            f"cannot write {output}: use .glb, .gltf, .drc, .ply, " + ", ".join(_TRIMESH_FORMATS)
+            f"cannot write {output}: use .glb, .gltf, .drc, .ply, " + ", ".join(_UNSIZED_FORMATS)
         )
-    if suffix in _TRIMESH_FORMATS and args.size is not None:
+    if suffix in _UNSIZED_FORMATS and args.size is not None:
         raise UserError(
             f"--size needs a .glb, .gltf, .drc or .ply output; {suffix} sizes are not measured"
         )
@@ -555,9 +555,9 @@ def _run_compress(args: argparse.Namespace) -> int:
             ],
         )
         print(in_unit(result.message, unit))
-        if suffix in _TRIMESH_FORMATS and file_bytes is not None:
+        if suffix in _UNSIZED_FORMATS and file_bytes is not None:
             print(
-                f"wrote {output}: {file_bytes} bytes ({suffix[1:]}, through trimesh; "
+                f"wrote {output}: {file_bytes} bytes ({suffix[1:]} of the decoded mesh; "
                 f"the bytes above are the {result.format} encoding the search sized)"
             )
     return EXIT_OK if result.met else EXIT_UNMET

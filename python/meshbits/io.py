@@ -333,5 +333,23 @@ def save_mesh(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> Path
         for name, data in files.items():
             write_atomic(path.with_name(name), data)
         return write_atomic(path, document)
+    if suffix in ("obj", "off"):
+        return write_atomic(path, _text_mesh(suffix, mesh.vertices, mesh.faces))
     data = mesh.export(file_type=suffix)
     return write_atomic(path, data.encode() if isinstance(data, str) else data)
+
+
+def _text_mesh(suffix: str, vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    """An OBJ or OFF whose coordinates read back exactly: each written with 17 significant
+    digits (trimesh writes a fixed 8 decimals, which rounds a small mesh away)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if suffix == "obj":
+        head, v_fmt, f_rows = "", "v %.17g %.17g %.17g", f + 1
+        f_fmt = "f %d %d %d"
+    else:
+        head, v_fmt, f_rows = f"OFF\n{len(v)} {len(f)} 0\n", "%.17g %.17g %.17g", f
+        f_fmt = "3 %d %d %d"
+    lines = [v_fmt % tuple(row) for row in v.tolist()]
+    lines += [f_fmt % tuple(row) for row in f_rows.tolist()]
+    return (head + "\n".join(lines) + "\n").encode()
