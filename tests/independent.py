@@ -231,31 +231,95 @@ def surface_samples(
 
 
 def distances_to_mesh(
-    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, chunk: int = 4096
+    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, pairs: int = 1 << 21
 ) -> np.ndarray:
-    """Exact float64 distance from every point to the mesh: the triangles whose box can be
-    within the distance to the nearest vertex (found with a k-d tree on the triangles'
-    centres, padded by their largest reach) are measured exactly."""
+    """Exact float64 distance from every point to the mesh. Each point's distance to its
+    nearest vertex bounds it; the triangles whose centre lies within that bound plus
+    their reach (found with a k-d tree over the triangles of the smallest 98% of reaches)
+    are measured exactly, and those of the largest 2% whose box lies within the bound, in
+    blocks of at most ``pairs`` point-triangle pairs."""
     corners = vertices[faces]
     centres = corners.mean(axis=1)
-    reach = np.linalg.norm(corners - centres[:, None, :], axis=2).max()
-    tree_vertices = cKDTree(vertices[np.unique(faces)])
-    tree_centres = cKDTree(centres)
-    upper, _ = tree_vertices.query(points)
-    out = np.empty(len(points))
-    for start in range(0, len(points), chunk):
-        block = points[start : start + chunk]
-        radii = upper[start : start + chunk] + reach
-        candidates = tree_centres.query_ball_point(block, radii * (1 + 1e-12) + 1e-300)
-        rows = np.repeat(np.arange(len(block)), [len(c) for c in candidates])
-        cols = np.concatenate([np.asarray(c, dtype=np.int64) for c in candidates])
-        d = point_triangle_distance(
-            block[rows], corners[cols, 0], corners[cols, 1], corners[cols, 2]
-        )
-        best = np.full(len(block), np.inf)
-        np.minimum.at(best, rows, d)
-        out[start : start + chunk] = best
+    reach = np.linalg.norm(corners - centres[:, None, :], axis=2).max(axis=1)
+    cut = float(np.quantile(reach, 0.98)) if len(reach) else 0.0
+    small = np.flatnonzero(reach <= cut)
+    large = np.flatnonzero(reach > cut)
+    upper, _ = cKDTree(vertices[np.unique(faces)]).query(points)
+    out = np.full(len(points), np.inf)
+    tree = cKDTree(centres[small]) if len(small) else None
+    start = 0
+    while start < len(points):
+        block = slice(start, min(len(points), start + 64))
+        if tree is not None:
+            radii = upper[block] * (1 + 1e-12) + cut + 1e-300
+            found = tree.query_ball_point(points[block], radii)
+            rows = np.repeat(np.arange(block.start, block.stop), [len(c) for c in found])
+            cols = small[np.concatenate([np.asarray(c, dtype=np.int64) for c in found])]
+            for first in range(0, len(rows), pairs):
+                r, c = rows[first : first + pairs], cols[first : first + pairs]
+                d = point_triangle_distance(points[r], corners[c, 0], corners[c, 1], corners[c, 2])
+                np.minimum.at(out, r, d)
+        start = block.stop
+    # The large triangles: those whose box lies within a point's bound, exactly.
+    lo, hi = corners[large].min(axis=1), corners[large].max(axis=1)
+    step = max(1, pairs // max(len(large), 1))
+    for first in range(0, len(points) if len(large) else 0, step):
+        block = points[first : first + step]
+        gap = np.maximum(np.maximum(lo[None] - block[:, None], block[:, None] - hi[None]), 0.0)
+        bound = upper[first : first + step] * (1 + 1e-12) + 1e-300
+        near = np.nonzero((gap * gap).sum(axis=2) <= (bound * bound)[:, None])
+        r, c = near[0] + first, large[near[1]]
+        d = point_triangle_distance(points[r], corners[c, 0], corners[c, 1], corners[c, 2])
+        np.minimum.at(out, r, d)
     return out
+
+
+#: Above this many triangles, distances are ranked with Open3D (float32, when it is
+#: installed) and only the farthest points are measured exactly, against every triangle.
+RANKED_ABOVE = 20_000
+
+#: Points measured exactly after ranking.
+RANKED_TOP = 256
+
+
+def _near_exact(
+    points: np.ndarray, guesses: np.ndarray, vertices: np.ndarray, faces: np.ndarray
+) -> np.ndarray:
+    """Exact float64 distances from a few points to the mesh, given a float32 guess of each
+    (Open3D's): only the triangles whose box lies within the guess plus a slack far beyond
+    float32's error (1e-4 of the coordinates' and the guess's magnitude) can be nearest."""
+    corners = vertices[faces]
+    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    magnitude = float(np.abs(vertices).max())
+    out = np.empty(len(points))
+    for i, (point, guess) in enumerate(zip(points, guesses, strict=True)):
+        reach = guess + 1e-4 * (magnitude + guess) + 1e-300
+        gap = np.maximum(np.maximum(lo - point, point - hi), 0.0)
+        near = np.flatnonzero((gap * gap).sum(axis=1) <= reach * reach)
+        repeated = np.broadcast_to(point, (len(near), 3))
+        c = corners[near]
+        out[i] = point_triangle_distance(repeated, c[:, 0], c[:, 1], c[:, 2]).min()
+    return out
+
+
+def _farthest_exact(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Exact distances of the points that may be the farthest: all of them on a small
+    mesh; on a large one, the :data:`RANKED_TOP` farthest by Open3D's float32 distance
+    (every point exactly without Open3D). Returns ``(indices, distances)`` pairs as two
+    arrays."""
+    try:
+        import open3d as o3d
+    except ImportError:
+        o3d = None
+    if o3d is None or len(faces) <= RANKED_ABOVE:
+        return np.arange(len(points)), distances_to_mesh(points, vertices, faces)
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(vertices.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32))
+    )
+    ranked = scene.compute_distance(o3d.core.Tensor(points.astype(np.float32))).numpy()
+    top = np.argsort(ranked)[-RANKED_TOP:]
+    return top, _near_exact(points[top], ranked[top].astype(np.float64), vertices, faces)
 
 
 def directed_lower(
@@ -270,8 +334,9 @@ def directed_lower(
     (va, fa), (vb, fb) = a, b
     points, chosen = surface_samples(va, fa, samples, seed)
     used = va[np.unique(fa)]
-    d = distances_to_mesh(np.concatenate([points, used]), vb, fb)
-    far = np.argsort(d[: len(points)])[-32:]
+    index, d = _farthest_exact(np.concatenate([points, used]), vb, fb)
+    on_samples = index < len(points)
+    far = index[on_samples][np.argsort(d[on_samples])[-32:]]
     faces = fa[chosen[far]]
     rng = np.random.default_rng(seed + 1)
     picks = rng.integers(0, len(faces), samples)
@@ -281,7 +346,7 @@ def directed_lower(
     dense = (
         c[:, 0] * (1 - s)[:, None] + c[:, 1] * (s * (1 - r2))[:, None] + c[:, 2] * (s * r2)[:, None]
     )
-    return float(max(d.max(), distances_to_mesh(dense, vb, fb).max()))
+    return float(max(d.max(), _farthest_exact(dense, vb, fb)[1].max()))
 
 
 def hausdorff_lower(
