@@ -114,9 +114,11 @@ def main() -> int:
                 counts["broken"] += broken
                 counts["larger"] += larger
                 bad += code not in (0, 1, 2) or broken or larger
+                bound = row.get("bound")
                 detail = (
                     f"{row.get('input_bytes', 0):>9} -> {row.get('bytes', 0):>9} B, bound "
-                    f"{row.get('bound')!s:>10.10} true >= {row.get('true', float('nan')):.4g}"
+                    f"{'none' if bound is None else f'{bound:.4g}':>10} true >= "
+                    f"{row.get('true', float('nan')):.4g}"
                     f" kept {row.get('kept', 0)}/{row.get('primitives', 0)}"
                     if "bytes" in row
                     else str(row.get("error"))

@@ -337,6 +337,8 @@ def directed_lower(
     index, d = _farthest_exact(np.concatenate([points, used]), vb, fb)
     on_samples = index < len(points)
     far = index[on_samples][np.argsort(d[on_samples])[-32:]]
+    if len(far) == 0:
+        return float(d.max())
     faces = fa[chosen[far]]
     rng = np.random.default_rng(seed + 1)
     picks = rng.integers(0, len(faces), samples)

@@ -76,6 +76,11 @@ __all__ = [
     "scene_info",
 ]
 
+#: The most bits meshopt's integer positions hold (``KHR_mesh_quantization``'s shorts);
+#: beyond, positions are float32 on the grid, up to :data:`MESHOPT_MAX_BITS`.
+MESHOPT_INTEGER_BITS = 16
+MESHOPT_MAX_BITS = 24
+
 #: Codecs of :func:`compress_scene`.
 CODECS = ("draco", "meshopt")
 
@@ -436,10 +441,11 @@ def encode_meshopt_primitive(
     """A primitive as ``EXT_meshopt_compression`` streams under ``KHR_mesh_quantization``,
     triangles and vertices first reordered for the codecs (as gltfpack does): positions as
     their integer codes on the cube grid (bytes up to 8 bits, shorts up to 16; the
-    dequantization goes to the nodes), or as float32 on the grid for a skinned primitive;
-    normals and tangents through the octahedral filter; UVs rounded to their bits, as
-    normalized unsigned shorts within [0, 1] and float32 beyond; colours and weights as
-    normalized bytes; joints as bytes or shorts."""
+    dequantization goes to the nodes), or as float32 on the grid for a skinned or
+    instanced primitive and beyond 16 bits; normals and tangents through the octahedral
+    filter; UVs rounded to their bits, as normalized unsigned shorts within [0, 1] and
+    float32 beyond; colours and weights as normalized bytes; joints as bytes or shorts."""
+    integer_positions = integer_positions and bits <= MESHOPT_INTEGER_BITS
     attributes = attributes or {}
     order_faces, old = _core.meshopt_reorder(
         np.ascontiguousarray(faces, dtype=np.uint32), len(vertices)
@@ -882,7 +888,7 @@ def _search_primitive(
         )
 
     max_bits = min(
-        16 if codec == "meshopt" else draco_max_bits(job.grid_size),
+        MESHOPT_MAX_BITS if codec == "meshopt" else draco_max_bits(job.grid_size),
         precision_bits(data.positions),
     )
     search = Search(
@@ -1264,8 +1270,6 @@ def _job_report(
     if not compressed:
         error, upper = _kept_error(document, job, certify)
     world_upper = None if upper is None else upper * job.scale + margin
-    if not compressed and upper == 0.0:
-        world_upper = 0.0  # its data and its nodes are as they were
     limit = target_error * (1 + 1e-12)
     if not compressed and error == 0.0:
         met = True
@@ -1426,12 +1430,15 @@ def _shared_grids(
     budgets: list[float] | None = None,
     measure: bool = True,
 ) -> tuple[list[Encoding | None], list[float], list[float | None]]:
-    """meshopt: the jobs of one cluster share one dequantization (their nodes'), so they
-    are quantized again on one cube grid over their boxes, with the bits whose step is at
-    most the finest any of them chose; and measured again (unless ``measure`` is False;
-    with ``budgets``, one per job, certified again against them). Returns the encodings,
-    their errors and their certified bounds (None where not certified, and for jobs
-    kept as they were)."""
+    """meshopt: the jobs of one cluster share their meshes' node transforms, so integer
+    positions need one dequantization for all of them: they are quantized again on one
+    cube grid over their boxes, with the bits whose step is at most the finest any of them
+    chose. Where that takes more than 16 bits, or some job of the cluster stores float32
+    positions (skinned, instanced, beyond 16 bits), every job stores float32 positions on
+    its own grid instead, which need no shared transform. What changed is measured again
+    (unless ``measure`` is False; with ``budgets``, one per job, certified again against
+    them). Returns the encodings, their errors and their certified bounds (None where not
+    certified, and for jobs kept as they were)."""
     clusters: dict[int, list[int]] = {}
     for i, (job, outcome) in enumerate(zip(jobs, outcomes, strict=True)):
         if outcome[0] is not None:
@@ -1439,49 +1446,69 @@ def _shared_grids(
     encodings = [o[1] for o in outcomes]
     measured = [0.0 if o[0] is None else o[0].measured_error for o in outcomes]
     uppers = [None if o[0] is None else o[0].measured_error_upper for o in outcomes]
+
+    def again(i: int, encoding: Encoding) -> None:
+        encodings[i] = encoding
+        if not measure:
+            return
+        reference = jobs[i].reference
+        assert reference is not None
+        mesh = (encoding.vertices, encoding.faces)
+        if budgets is None:
+            measured[i], uppers[i] = reference.hausdorff(mesh).distance, None
+            return
+        h = reference.hausdorff(
+            mesh, bounds=True, tolerance=CERTIFY_TOLERANCE * budgets[i], threshold=budgets[i]
+        )
+        measured[i] = h.distance
+        uppers[i] = float(h.upper) if h.upper is not None else None
+
     for members in clusters.values():
-        if len(members) == 1 and not jobs[members[0]].data.skinned:
-            encodings[members[0]].bits = outcomes[members[0]][0].bits
+        for i in members:
+            encodings[i].bits = outcomes[i][0].bits
+        integer = all(encodings[i].dequantize is not None for i in members)
+        if integer and len(members) == 1:
             continue
         levels = [outcomes[i][2] for i in members]
-        lo = np.min([np.minimum(lv.origin, lv.vertices.min(axis=0)) for lv in levels], axis=0)
-        hi = np.max([lv.vertices.max(axis=0) for lv in levels], axis=0)
-        origin, side = cube_grid(lo, np.maximum(hi, lo))
-        steps = [
-            lv.grid_size / (2 ** outcomes[i][0].bits - 1)
-            for i, lv in zip(members, levels, strict=True)
-        ]
-        bits = int(min(16, max(1, math.ceil(math.log2(side / min(steps) + 1))))) if side > 0 else 1
+        if integer:
+            lo = np.min([np.minimum(lv.origin, lv.vertices.min(axis=0)) for lv in levels], axis=0)
+            hi = np.max([lv.vertices.max(axis=0) for lv in levels], axis=0)
+            origin, side = cube_grid(lo, np.maximum(hi, lo))
+            finest = min(
+                lv.grid_size / (2 ** outcomes[i][0].bits - 1)
+                for i, lv in zip(members, levels, strict=True)
+            )
+            bits = max(1, math.ceil(math.log2(side / finest + 1))) if side > 0 else 1
+            if bits <= MESHOPT_INTEGER_BITS:
+                for i, level in zip(members, levels, strict=True):
+                    encoding = encode_meshopt_primitive(
+                        level.vertices,
+                        level.faces,
+                        level.attributes,
+                        bits,
+                        origin,
+                        side,
+                        jobs[i].bits,
+                    )
+                    encoding.bits = bits
+                    again(i, encoding)
+                continue
         for i, level in zip(members, levels, strict=True):
-            job = jobs[i]
+            if encodings[i].dequantize is None:
+                continue
+            bits = outcomes[i][0].bits
             encoding = encode_meshopt_primitive(
                 level.vertices,
                 level.faces,
                 level.attributes,
                 bits,
-                origin,
-                side,
-                job.bits,
-                integer_positions=job.framed,
+                level.origin,
+                level.grid_size,
+                jobs[i].bits,
+                integer_positions=False,
             )
             encoding.bits = bits
-            encodings[i] = encoding
-            if not measure:
-                continue
-            assert job.reference is not None
-            mesh = (encoding.vertices, encoding.faces)
-            if budgets is None:
-                measured[i] = job.reference.hausdorff(mesh).distance
-                uppers[i] = None
-            else:
-                h = job.reference.hausdorff(
-                    mesh,
-                    bounds=True,
-                    tolerance=CERTIFY_TOLERANCE * budgets[i],
-                    threshold=budgets[i],
-                )
-                measured[i] = h.distance
-                uppers[i] = float(h.upper) if h.upper is not None else None
+            again(i, encoding)
     return encodings, measured, uppers
 
 
