@@ -25,6 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+import numpy as np  # noqa: E402
 from independent import gltf_world_mesh, hausdorff_lower, read_output  # noqa: E402
 
 import meshbits  # noqa: E402
@@ -80,6 +81,7 @@ def run(path: Path, codec: str, budget: float, out: Path, timeout: float) -> dic
     }
     try:
         reference, how = input_mesh(path)
+        row["size"] = float(np.ptp(reference[0], axis=0).max())
         row["true"] = hausdorff_lower(reference, read_output(target), samples=20_000)
         row["reference"] = how
     except Exception as err:
@@ -105,7 +107,10 @@ def main() -> int:
                 row = run(path, codec, budget, out, args.timeout)
                 counts["runs"] += 1
                 code = row["exit"]
-                broken = row.get("bound") is not None and row.get("true", 0) > row["bound"]
+                # The checker's own float64 rounding on slivers: a primitive copied byte for
+                # byte (distance 0) measured 9.2e-9 of the scene's size on chess-board.
+                slack = 1e-9 * row.get("size", 0.0)
+                broken = row.get("bound") is not None and row.get("true", 0) > row["bound"] + slack
                 larger = row.get("bytes", 0) > row.get("input_bytes", 1 << 62)
                 counts["met"] += code == 0
                 counts["unmet"] += code == 1

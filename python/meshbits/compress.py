@@ -39,7 +39,14 @@ from .encode import draco_max_bits
 from .errors import MeshbitsError
 from .hausdorff import Reference, default_samples
 from .io import write_atomic
-from .mesh import MeshLike, as_mesh, distinct_positions, kept_shape, lost_geometry_note
+from .mesh import (
+    MeshLike,
+    as_mesh,
+    distinct_positions,
+    draco_drops_note,
+    kept_shape,
+    lost_geometry_note,
+)
 from .quantize import precision_bits
 from .results import SAMPLED_ONLY, ArrayResult, ProgressCallback
 from .search import Iteration, Refused, Search, bound_answer, certify_answer, run_search
@@ -400,7 +407,8 @@ def compress(
         + _precision_note(constraint, met, chosen, max_bits, FORMAT_MAX_BITS[format])
         + _float32_note(constraint, met, budget, format, original[0])
         + skipped_note(skipped)
-        + lost_geometry_note(kept_area, kept_extent),
+        + lost_geometry_note(kept_area, kept_extent)
+        + (draco_drops_note(*original) if not met and format == "draco" else ""),
         kept_area=kept_area,
         kept_extent=kept_extent,
         skipped=skipped,

@@ -53,7 +53,7 @@ from .gltf import (
 )
 from .hausdorff import Reference, default_samples
 from .io import check_not_an_input, write_atomic
-from .mesh import distinct_positions, kept_shape, lost_geometry_note
+from .mesh import distinct_positions, draco_drops_note, kept_shape, lost_geometry_note
 from .quantize import cube_grid, precision_bits
 from .results import SAMPLED_ONLY, Progress, ProgressCallback
 from .search import (
@@ -1072,7 +1072,7 @@ def compress_scene(
             jobs, outcomes, encodings, measured, uppers, strict=True
         )
     ]
-    reports += [_kept_report(document, data, instances, certify) for data in kept]
+    reports += [_kept_report(document, data, instances, certify, margin) for data in kept]
     return _scene_result(
         constraint,
         budget,
@@ -1086,6 +1086,7 @@ def compress_scene(
         start,
         document.notes,
         _budget_text(error, size, relative),
+        [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(kept),
     )
 
 
@@ -1321,8 +1322,10 @@ def _kept_report(
     data: PrimitiveData,
     instances: dict[int, list[tuple[int, np.ndarray]]],
     certify: bool,
+    margin: float,
 ) -> PrimitiveReport:
-    """The report of a primitive with morph targets or no faces, copied as it was."""
+    """The report of a primitive with morph targets or no faces, copied as it was (its
+    bound the world rounding ``margin``)."""
     return PrimitiveReport(
         mesh=data.mesh,
         primitive=data.index,
@@ -1343,7 +1346,7 @@ def _kept_report(
         met=True,
         kept="morph targets" if data.morph else "no faces",
         error_upper=0.0 if certify else None,
-        world_error_upper=0.0 if certify else None,
+        world_error_upper=margin if certify else None,
     )
 
 
@@ -1360,6 +1363,7 @@ def _scene_result(
     start: float,
     notes: list[str],
     budget_text: str,
+    meshes: list[tuple[np.ndarray, np.ndarray] | None],
 ) -> SceneResult:
     world_error = max(r.world_error for r in reports)
     bounds = [r.world_error_upper for r in reports if r.world_error_upper is not None]
@@ -1384,6 +1388,12 @@ def _scene_result(
     message += lost_geometry_note(
         min(r.kept_area for r in reports), min(r.kept_extent for r in reports)
     )
+    if not met and codec == "draco":
+        message += "".join(
+            draco_drops_note(*mesh, f"mesh {r.mesh} primitive {r.primitive}")
+            for r, mesh in zip(reports, meshes, strict=True)
+            if not r.met and mesh is not None
+        )
     return SceneResult(
         constraint=constraint,
         budget=budget,
