@@ -79,7 +79,7 @@ def main() -> int:
         print(
             f"{case:4d} {output[0]:5s} {output[1] or '':8s} scale {scale:9.3g} offset "
             f"{np.abs(offset).max():9.3g} {budget:18s} met {result['met']!s:5s} bound "
-            f"{bound if bound is None else f'{bound:.4g}':>10} true >= {true:.4g} "
+            f"{'none' if bound is None else f'{bound:.4g}':>10} true >= {true:.4g} "
             f"{result['seconds']:5.1f} s{'  BROKEN' if bad else ''}",
             flush=True,
         )

@@ -369,3 +369,40 @@ def test_the_welded_original_counts_the_vertices_its_faces_use():
     assert len(welded[0]) == 3 * len(faces)
     assert search.levels[0].source == "original"
     assert search.levels[0].vertex_count == len(np.unique(faces))
+
+
+def test_candidates_the_encoder_refuses_are_skipped_and_counted():
+    """A codec that refuses some B (Draco refused textured meshes at 18 to 21 bits): the
+    search goes on without them, and says how many it skipped."""
+    from meshbits.encode import encode
+    from meshbits.errors import MeshbitsError
+    from meshbits.search import run_search
+
+    search, _ = _spot_search(0.002)
+    refused_bits = set(range(8, 13))
+
+    def codec(vertices, faces, attributes, bits, origin, grid_size):
+        if bits in refused_bits:
+            raise MeshbitsError(f"no {bits}")
+        return encode((vertices, faces), bits, format="draco", origin=origin, grid_size=grid_size)
+
+    search.codec = codec
+    run_search(search, 6)
+    best = search.best()
+    assert best is not None and best.bits not in refused_bits
+    assert search.refused and all(bits in refused_bits for _, bits in search.refused)
+    assert all(m.bits not in refused_bits for m in search.measurements)
+
+
+def test_an_encoder_that_refuses_everything_is_said_so():
+    from meshbits.errors import MeshbitsError
+    from meshbits.search import Refused, run_search
+
+    search, _ = _spot_search(0.002)
+
+    def codec(*args):
+        raise MeshbitsError("never")
+
+    search.codec = codec
+    with pytest.raises(Refused, match="refused every candidate"):
+        run_search(search, 6)

@@ -870,7 +870,7 @@ class Search:
                 # Nothing of the surface is left once decoded (a grid coarser than the
                 # mesh): no measurement can make it an answer.
                 del level.encodings[bits]
-                why = f"at {bits} bits every decoded face is degenerate (no surface left)"
+                why = "every decoded face is degenerate (no surface left)"
                 self.refused[(index, bits)] = why
                 raise Refused(why)
         return level.encodings[bits]

@@ -1,0 +1,80 @@
+"""Measurements against collapsed meshes (issue #31, item 3: no measurement takes
+unbounded time).
+
+A mesh whose vertices all sit at one point (the bunny scaled by 1e-6 and decoded by Draco)
+has every triangle at exactly the same distance from any query: the nearest-triangle
+search used to test every triangle for each query, and the tree build was quadratic too
+(69k faces: minutes). Here the answers are checked against the analytic ones; the speed
+itself is covered by the Rust tests, which count the triangles each query tests.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+import meshbits
+
+DATA = Path(__file__).parent / "data"
+
+
+def bunny() -> tuple[np.ndarray, np.ndarray]:
+    mesh = trimesh.load(DATA / "bunny.ply", process=False, force="mesh")
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def test_closest_points_on_a_collapsed_mesh_are_the_point_and_the_first_face():
+    v, f = bunny()
+    at = v[123]
+    closest = meshbits.ClosestPoints((np.tile(at, (len(v), 1)), f)).query(v)
+    np.testing.assert_array_equal(closest.faces, 0)
+    np.testing.assert_array_equal(closest.points, np.tile(at, (len(v), 1)))
+    np.testing.assert_allclose(closest.distances, np.linalg.norm(v - at, axis=1), rtol=1e-15)
+
+
+def test_hausdorff_to_a_collapsed_mesh_is_the_farthest_vertex():
+    # h(bunny, point) is the largest |p - point| over the surface, a convex function of p:
+    # reached at a vertex, and every referenced vertex is sampled. h(point, bunny) is
+    # smaller.
+    v, f = bunny()
+    collapsed = (np.zeros_like(v), f)
+    farthest = np.linalg.norm(v[np.unique(f)], axis=1).max()
+    r = meshbits.hausdorff((v, f), collapsed, samples=20_000, relative_tolerance=0.01)
+    assert r.distance == r.a_to_b.max
+    np.testing.assert_allclose(r.a_to_b.max, farthest, rtol=1e-15)
+    np.testing.assert_array_equal(r.a_to_b.argmax_closest, [0.0, 0.0, 0.0])
+    assert r.a_to_b.argmax_face == 0
+    assert r.a_to_b.converged and r.b_to_a.converged
+    assert r.a_to_b.max <= r.a_to_b.upper <= r.a_to_b.max * 1.01
+    assert r.b_to_a.max < r.a_to_b.max
+    reference = meshbits.Reference(collapsed, samples=20_000)
+    again = reference.hausdorff((v, f), bounds=True)
+    np.testing.assert_allclose(again.distance, farthest, rtol=1e-15)
+
+
+def test_a_collapsed_source_is_not_refined_below_the_rounding_floor():
+    # Every cell of a collapsed source is one point: a tolerance under the rounding
+    # margin cannot be met, and the refinement stops at once instead of spending its
+    # budget on copies of the point.
+    v, f = bunny()
+    r = meshbits.hausdorff(
+        (np.zeros_like(v), f), (v, f), samples=10_000, tolerance=1e-18, refine_budget=10**6
+    )
+    assert r.a_to_b.refined_points == 0
+    assert r.a_to_b.converged is False
+    assert r.a_to_b.max <= r.a_to_b.upper
+
+
+def test_collapsed_measurements_do_not_depend_on_threads():
+    v, f = bunny()
+    collapsed = (np.tile(v[7], (len(v), 1)), f)
+    out = []
+    for count in (1, 2):
+        with meshbits.threads(count):
+            r = meshbits.hausdorff((v, f), collapsed, samples=20_000, tolerance=1e-6)
+            q = meshbits.ClosestPoints(collapsed).query(v[::7])
+        out.append((json.dumps(r.to_dict()), q.distances.tobytes(), q.faces.tobytes()))
+    assert out[0] == out[1]
