@@ -19,22 +19,41 @@
 //! line): visiting an inner node reads both children's boxes at once. Triangles are stored
 //! prepared ([`PreparedTriangle`]) in leaf order, so a leaf's triangles are contiguous.
 //!
+//! **Equal boxes.** Triangles whose f32 boxes are bitwise equal are grouped before the
+//! build ([`SharedBoxes`]: a radix sort of 32-bit box hashes, about 3 ms per 200k faces on
+//! one thread, and nothing more unless two hashes are equal), and PLOC gets each box
+//! once: given `n` equal boxes (a mesh collapsed to one point) it merged one pair per
+//! pass, a chain `n` deep built in quadratic time (69k faces: 15 s). Inside a box,
+//! triangles with bitwise-equal recentred corners (collapsed to the same point, or
+//! repeated faces) form one leaf flagged [`IDENTICAL`], its slots in face order: their
+//! distances are bitwise equal, so only the first (the smallest face) is tested. Several
+//! such sets in one box (distinct triangles closer together than the f32 boxes resolve)
+//! form a balanced subtree of them, in the order of their smallest faces; a query nearest
+//! to them tests each set, as the boxes cannot tell them apart.
+//!
 //! **Search.** Nearest-first branch and bound with an explicit stack: at each inner node
 //! both child boxes are measured; the nearer child is visited first and the farther one
-//! pushed, each only if its box is no farther than the best squared distance so far. A
+//! pushed, each only if it may hold a better answer (see *Ties*). A
 //! `hint` triangle (for instance the previous query's answer, when queries are spatially
 //! coherent) sets the starting best, and the search starts in the subtree
 //! [`RESTART_LEVELS`] levels above the hint's leaf (every pair knows its parent, every
 //! triangle slot its leaf's pair), then climbs to the root, searching each ancestor's other
-//! child whose box is within the best distance: the start subtree and those children cover
+//! child that may hold a better answer: the start subtree and those children cover
 //! the tree once, and near the hint the climb mostly measures one box per level. Without a
-//! hint the search starts at the root. Ties between triangles at exactly the same distance
-//! go to the smallest face index, and boxes at exactly the best distance are still
-//! visited, so the answer does not depend on the tree's shape, the hint, or the thread
-//! count. An empty tree answers `None`; a tree whose root is a leaf tests its triangles
-//! directly. On the benchmark pair (1.31M faces against their 482k-face clustered copy,
-//! `benches/bench_refs.py`), starting at the hint's subtree cut the exact queries' time by
-//! 10 to 20% against descending from the root.
+//! hint the search starts at the root. An empty tree answers `None`; a tree whose root is a
+//! leaf tests its triangles directly. On the benchmark pair (1.31M faces against their
+//! 482k-face clustered copy, `benches/bench_refs.py`), starting at the hint's subtree cut
+//! the exact queries' time by 10 to 20% against descending from the root.
+//!
+//! **Ties.** The answer is the smallest `(d², face index)` pair, compared in that order:
+//! among triangles at exactly the same f64 distance, the smallest face index, so the answer
+//! does not depend on the tree's shape, the hint, or the thread count. Every child box
+//! knows the smallest face index below it (`min_face`, read only on ties): a box is
+//! searched when its `(d², smallest face)` is below the best pair, that is when it is
+//! nearer than the best distance, or exactly at it and holds a smaller face index; of two
+//! boxes at the best distance, the one holding the smaller face is searched first. Boxes
+//! at exactly the best distance used to be searched whatever they held: on a collapsed
+//! mesh (every vertex at one point), every box, so every query tested every triangle.
 //!
 //! **Early exit.** With `stop_below_d2 > 0`, the search returns as soon as it has found
 //! a triangle with squared distance `< stop_below_d2`; the answer is then an upper bound
@@ -60,6 +79,17 @@ const BOX_PAD: f64 = 1.0 / (1u64 << 40) as f64;
 /// (a subtree of up to `2^(RESTART_LEVELS + 1)` triangles; 2, 4, 6 and 9 measured alike).
 const RESTART_LEVELS: usize = 6;
 
+/// Flag of a leaf's triangle count: its triangles are bitwise identical (recentred corners
+/// equal, slots sorted by face index), and only the first is tested. Counts stay below
+/// 2³¹ (at most 2³¹ faces).
+const IDENTICAL: u32 = 1 << 31;
+
+/// Triangle slots of a leaf of `count` (flag included).
+#[inline(always)]
+fn slots_of(count: u32) -> u32 {
+    count & !IDENTICAL
+}
+
 /// Queries per parallel work unit in [`TriangleTree::query`]; the hint carries over
 /// inside a unit.
 const QUERY_CHUNK: usize = 512;
@@ -81,7 +111,7 @@ struct Pair {
     max: [[f32; 3]; 2],
     /// Inner child: index of its own pair of children. Leaf: first triangle slot.
     link: [u32; 2],
-    /// Triangles in a leaf child; 0 for an inner child.
+    /// Triangles in a leaf child, with the [`IDENTICAL`] flag; 0 for an inner child.
     count: [u32; 2],
 }
 
@@ -107,6 +137,8 @@ struct Pending {
     link: u32,
     count: u32,
     d2: f64,
+    /// `2 × pair + child`: where its smallest face index is kept (`min_face`).
+    owner: u32,
 }
 
 /// Reusable scratch space of one search thread.
@@ -147,6 +179,8 @@ pub struct TriangleTree {
     parent: Vec<u32>,
     /// Per triangle slot, the pair holding its leaf (`u32::MAX` when the root is a leaf).
     leaf_pair: Vec<u32>,
+    /// Per child box (`2 × pair + child`), the smallest face index below it.
+    min_face: Vec<u32>,
     depth: usize,
     vertex_count: usize,
     /// [`crate::reduce::box_overlap`] of the mesh, from the triangles' f32 boxes.
@@ -167,23 +201,25 @@ fn outward_box(corners: [DVec3; 3], pad: f64) -> Aabb {
 }
 
 /// [`crate::reduce::box_overlap`] from the triangles' boxes: the sum of their volumes, each
-/// side widened by `1e-3` of the largest side of `extent` (the referenced vertices' box),
+/// widened by [`crate::reduce::overlap_pad`] of `extent` (the referenced vertices' box),
 /// over the volume of that box widened alike (dimensionless; summed in fixed chunks, so
 /// the same for any thread count).
 fn overlap_of_boxes(boxes: &[Aabb], extent: DVec3) -> f64 {
-    let pad = 1e-3 * extent.max_element();
-    if boxes.is_empty() || pad.is_nan() || pad <= 0.0 {
+    let Some(pad) = crate::reduce::overlap_pad(extent) else {
+        return 0.0;
+    };
+    if boxes.is_empty() {
         return 0.0;
     }
     let volume = |b: &Aabb| {
-        let side = b.max.as_dvec3() - b.min.as_dvec3() + DVec3::splat(pad);
+        let side = b.max.as_dvec3() - b.min.as_dvec3() + pad;
         side.x * side.y * side.z
     };
     let parts: Vec<f64> = boxes
         .par_chunks(crate::reduce::SUM_CHUNK)
         .map(|chunk| chunk.iter().map(volume).sum::<f64>())
         .collect();
-    let whole = extent + DVec3::splat(pad);
+    let whole = extent + pad;
     parts.iter().sum::<f64>() / (whole.x * whole.y * whole.z)
 }
 
@@ -236,11 +272,167 @@ pub fn coherent_order(points: &[DVec3]) -> Vec<u32> {
     keyed.into_par_iter().map(|(_, i)| i).collect()
 }
 
+/// The bit patterns of a triangle's three recentred corners.
+type CornerBits = [[u64; 3]; 3];
+
+/// Triangles whose f32 boxes are bitwise equal, found before the PLOC build: PLOC gets
+/// each box once. Given `n` equal boxes (a mesh collapsed to a point) it merged one pair
+/// per pass, a chain `n` deep built in quadratic time (69k faces: 15 s).
+#[derive(Debug)]
+struct SharedBoxes {
+    /// The distinct boxes, in the order of their smallest face: obvhs's primitives.
+    boxes: Vec<Aabb>,
+    /// Per distinct box, its face when it holds one, else [`SHARED`] `| g`, `g` its entry
+    /// in `groups`.
+    entry: Vec<u32>,
+    /// Per box of several faces, its range of `item_start` (one entry more).
+    groups: Vec<u32>,
+    /// Per item (a set of bitwise-identical triangles), its range of `faces` (one more).
+    item_start: Vec<u32>,
+    /// Faces, in face order inside an item; a box's items in the order of their first face.
+    faces: Vec<u32>,
+}
+
+/// Flag of a [`SharedBoxes`] entry: a box of several faces.
+const SHARED: u32 = 1 << 31;
+
+impl SharedBoxes {
+    /// Groups the faces by box; inside a box, by `key` (bitwise corners: identical
+    /// triangles). None when every box is distinct (the usual case).
+    fn find(boxes: &[Aabb], key: impl Fn(u32) -> CornerBits) -> Option<SharedBoxes> {
+        let bits = |b: &Aabb| {
+            let (lo, hi) = (b.min.to_array(), b.max.to_array());
+            [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]].map(f32::to_bits)
+        };
+        // 32-bit hashes of the boxes above the face indices, sorted by hash (stable: equal
+        // hashes in face order). Equal boxes have equal hashes; equal hashes are checked.
+        let mut keyed: Vec<u64> = boxes
+            .par_iter()
+            .enumerate()
+            .map(|(i, b)| {
+                let h = bits(b).iter().fold(0u64, |h, &x| {
+                    (h ^ u64::from(x)).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                });
+                (h & !0xffff_ffff) | i as u64
+            })
+            .collect();
+        radix_sort_high32(&mut keyed);
+        let hash = |k: &u64| k >> 32;
+        if !keyed.par_windows(2).any(|w| hash(&w[0]) == hash(&w[1])) {
+            return None;
+        }
+        // The faces of each box held by several, in face order.
+        let mut several: Vec<Vec<u32>> = Vec::new();
+        let mut run = Vec::new();
+        for same_hash in keyed
+            .chunk_by(|a, b| hash(a) == hash(b))
+            .filter(|r| r.len() > 1)
+        {
+            run.clear();
+            run.extend(same_hash.iter().map(|&k| {
+                let face = k as u32;
+                (bits(&boxes[face as usize]), face)
+            }));
+            run.sort_unstable();
+            for same_box in run.chunk_by(|a, b| a.0 == b.0).filter(|r| r.len() > 1) {
+                several.push(same_box.iter().map(|&(_, face)| face).collect());
+            }
+        }
+        if several.is_empty() {
+            return None;
+        }
+        several.sort_unstable_by_key(|faces| faces[0]);
+        // A face stands for its box when no smaller face shares it.
+        let mut hidden = vec![false; boxes.len()];
+        for faces in &several {
+            for &face in &faces[1..] {
+                hidden[face as usize] = true;
+            }
+        }
+        let distinct: Vec<u32> = (0..boxes.len() as u32)
+            .into_par_iter()
+            .filter(|&face| !hidden[face as usize])
+            .collect();
+        // Where each box of several faces stands among the distinct ones.
+        let at: Vec<usize> = several
+            .iter()
+            .map(|faces| distinct.binary_search(&faces[0]).expect("a distinct face"))
+            .collect();
+        let mut shared = SharedBoxes {
+            boxes: distinct.par_iter().map(|&f| boxes[f as usize]).collect(),
+            entry: distinct,
+            groups: Vec::with_capacity(several.len() + 1),
+            item_start: Vec::new(),
+            faces: Vec::new(),
+        };
+        // Inside each box, identical triangles together (each item in face order), the
+        // items in the order of their first face.
+        let mut by_key = Vec::new();
+        for (g, faces) in several.iter().enumerate() {
+            shared.entry[at[g]] = SHARED | g as u32;
+            shared.groups.push(shared.item_start.len() as u32);
+            by_key.clear();
+            by_key.extend(faces.iter().map(|&f| (key(f), f)));
+            by_key.sort_unstable();
+            let mut items: Vec<&[(CornerBits, u32)]> = by_key.chunk_by(|a, b| a.0 == b.0).collect();
+            items.sort_unstable_by_key(|item| item[0].1);
+            for item in items {
+                shared.item_start.push(shared.faces.len() as u32);
+                shared.faces.extend(item.iter().map(|&(_, f)| f));
+            }
+        }
+        shared.groups.push(shared.item_start.len() as u32);
+        shared.item_start.push(shared.faces.len() as u32);
+        Some(shared)
+    }
+
+    /// The faces of item `item`.
+    fn item(&self, item: u32) -> &[u32] {
+        let (a, b) = (
+            self.item_start[item as usize],
+            self.item_start[item as usize + 1],
+        );
+        &self.faces[a as usize..b as usize]
+    }
+}
+
+/// `keys` sorted by their upper 32 bits, stably (LSD radix sort, four 8-bit passes).
+fn radix_sort_high32(keys: &mut Vec<u64>) {
+    let mut other = vec![0u64; keys.len()];
+    for pass in 0..4 {
+        let shift = 32 + 8 * pass;
+        let digit = |k: u64| ((k >> shift) & 0xff) as usize;
+        let mut start = [0usize; 257];
+        for &k in keys.iter() {
+            start[digit(k) + 1] += 1;
+        }
+        for i in 0..256 {
+            start[i + 1] += start[i];
+        }
+        for &k in keys.iter() {
+            let at = &mut start[digit(k)];
+            other[*at] = k;
+            *at += 1;
+        }
+        std::mem::swap(keys, &mut other);
+    }
+}
+
 impl TriangleTree {
     /// Builds the tree over `faces` (indices into `vertices`, length unit of the caller).
     ///
     /// An empty face list gives an empty tree (every query answers `None`).
     pub fn build(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Result<Self, MeshError> {
+        Self::build_with(vertices, faces, true)
+    }
+
+    /// [`build`](Self::build); `merge_identical: false` keeps identical triangles in
+    /// leaves of their own (tests of the tie rule alone).
+    fn build_with(
+        vertices: &[[f64; 3]],
+        faces: &[[u32; 3]],
+        merge_identical: bool,
+    ) -> Result<Self, MeshError> {
         check_finite(vertices)?;
         check_indices(faces, vertices.len())?;
         if faces.len() >= u32::MAX as usize / 2 {
@@ -269,7 +461,22 @@ impl TriangleTree {
             .par_iter()
             .map(|f| outward_box([local(f[0]), local(f[1]), local(f[2])], pad))
             .collect();
-        let bvh = build_bvh2(&boxes, BUILD_PARAMS, &mut Duration::default());
+        // Bitwise-equal recentred corners: equal faces, or faces collapsed to one point.
+        let corners = |face: u32| {
+            let f = faces[face as usize];
+            [0, 1, 2].map(|k| local(f[k]).to_array().map(f64::to_bits))
+        };
+        let shared = SharedBoxes::find(&boxes, |face| {
+            if merge_identical {
+                corners(face)
+            } else {
+                [[u64::from(face); 3]; 3]
+            }
+        });
+        let bvh = match &shared {
+            Some(shared) => build_bvh2(&shared.boxes, BUILD_PARAMS, &mut Duration::default()),
+            None => build_bvh2(&boxes, BUILD_PARAMS, &mut Duration::default()),
+        };
 
         let mut tree = TriangleTree {
             centre,
@@ -283,12 +490,13 @@ impl TriangleTree {
             faces: Vec::with_capacity(faces.len()),
             parent: Vec::new(),
             leaf_pair: Vec::with_capacity(faces.len()),
+            min_face: Vec::new(),
             depth: 0,
             vertex_count: vertices.len(),
             box_overlap: overlap_of_boxes(&boxes, hi - lo),
         };
         if !bvh.nodes.is_empty() {
-            tree.copy_from(&bvh);
+            tree.copy_from(&bvh, shared.as_ref());
             tree.triangles = tree
                 .faces
                 .par_iter()
@@ -304,51 +512,152 @@ impl TriangleTree {
     }
 
     /// Copies obvhs's nodes into sibling pairs in depth-first order, and the face indices
-    /// into leaf order (the triangles are then prepared in parallel, in that order).
-    fn copy_from(&mut self, bvh: &Bvh2) {
+    /// into leaf order (the triangles are then prepared in parallel, in that order); then
+    /// each child box's smallest face index.
+    fn copy_from(&mut self, bvh: &Bvh2, shared: Option<&SharedBoxes>) {
         let root = &bvh.nodes[0];
         self.root_min = root.aabb.min.to_array();
         self.root_max = root.aabb.max.to_array();
-        let push_leaf = |tree: &mut Self, first: u32, count: u32, pair: u32| -> u32 {
-            let slot = tree.faces.len() as u32;
-            tree.faces.extend_from_slice(
-                &bvh.primitive_indices[first as usize..(first + count) as usize],
-            );
-            tree.leaf_pair.resize(tree.faces.len(), pair);
-            slot
-        };
         if root.is_leaf() {
-            self.root_count = root.prim_count;
-            self.root_link = push_leaf(self, root.first_index, root.prim_count, u32::MAX);
-            self.depth = 1;
-            return;
+            (self.root_link, self.root_count) = self.copy_leaf(bvh, shared, 0, u32::MAX, 0);
+            self.depth = self.depth.max(1);
+        } else {
+            // (obvhs index of the first child, our pair index, depth)
+            self.pairs.reserve(bvh.nodes.len() / 2);
+            self.parent.reserve(bvh.nodes.len() / 2);
+            self.pairs.push(Pair::default());
+            self.parent.push(u32::MAX);
+            let mut todo = vec![(root.first_index, 0u32, 1usize)];
+            while let Some((first, pair, depth)) = todo.pop() {
+                self.depth = self.depth.max(depth + 1);
+                let mut built = Pair::default();
+                for k in 0..2 {
+                    let index = first + k as u32;
+                    let node = &bvh.nodes[index as usize];
+                    built.min[k] = node.aabb.min.to_array();
+                    built.max[k] = node.aabb.max.to_array();
+                    if node.is_leaf() {
+                        (built.link[k], built.count[k]) =
+                            self.copy_leaf(bvh, shared, index, pair, depth);
+                    } else {
+                        let child = self.pairs.len() as u32;
+                        self.pairs.push(Pair::default());
+                        self.parent.push(pair);
+                        built.link[k] = child;
+                        todo.push((node.first_index, child, depth + 1));
+                    }
+                }
+                self.pairs[pair as usize] = built;
+            }
         }
-        // (obvhs index of the first child, our pair index, depth)
-        self.pairs.reserve(bvh.nodes.len() / 2);
-        self.parent.reserve(bvh.nodes.len() / 2);
-        self.pairs.push(Pair::default());
-        self.parent.push(u32::MAX);
-        let mut todo = vec![(root.first_index, 0u32, 1usize)];
-        while let Some((first, pair, depth)) = todo.pop() {
-            self.depth = self.depth.max(depth + 1);
-            let mut built = Pair::default();
+        // Children pairs come after their parent: fill from the last pair up.
+        self.min_face = vec![u32::MAX; 2 * self.pairs.len()];
+        for index in (0..self.pairs.len()).rev() {
+            let pair = self.pairs[index];
             for k in 0..2 {
-                let node = &bvh.nodes[first as usize + k];
-                built.min[k] = node.aabb.min.to_array();
-                built.max[k] = node.aabb.max.to_array();
-                if node.is_leaf() {
-                    built.count[k] = node.prim_count;
-                    built.link[k] = push_leaf(self, node.first_index, node.prim_count, pair);
+                let (link, count) = (pair.link[k] as usize, pair.count[k]);
+                self.min_face[2 * index + k] = if count == 1 || count & IDENTICAL != 0 {
+                    // One triangle, or identical ones in face order.
+                    self.faces[link]
+                } else if count > 0 {
+                    let faces = &self.faces[link..link + count as usize];
+                    faces.iter().copied().min().unwrap_or(u32::MAX)
                 } else {
-                    let child = self.pairs.len() as u32;
-                    self.pairs.push(Pair::default());
-                    self.parent.push(pair);
-                    built.link[k] = child;
-                    todo.push((node.first_index, child, depth + 1));
+                    debug_assert!(link > index);
+                    self.min_face[2 * link].min(self.min_face[2 * link + 1])
+                };
+            }
+        }
+    }
+
+    /// Copies obvhs leaf `index`, a child of our pair `pair` at `depth` (`u32::MAX`, 0:
+    /// the root): returns its `(link, count)` as a child of `pair`.
+    ///
+    /// With `shared` boxes, obvhs's primitives are the distinct boxes, each holding items
+    /// of identical triangles. One item becomes one leaf, its faces in order, flagged
+    /// [`IDENTICAL`] when it holds more than one; several items (distinct triangles
+    /// closer together than the f32 boxes resolve) become a balanced subtree of such
+    /// leaves under the same box, the items of smaller faces on the first side.
+    fn copy_leaf(
+        &mut self,
+        bvh: &Bvh2,
+        shared: Option<&SharedBoxes>,
+        index: u32,
+        pair: u32,
+        depth: usize,
+    ) -> (u32, u32) {
+        let node = &bvh.nodes[index as usize];
+        let first = node.first_index as usize;
+        let prims = &bvh.primitive_indices[first..first + node.prim_count as usize];
+        let slot = self.faces.len() as u32;
+        match (shared, prims) {
+            (None, _) => self.faces.extend_from_slice(prims),
+            (Some(shared), &[b]) => {
+                let entry = shared.entry[b as usize];
+                if entry & SHARED == 0 {
+                    self.faces.push(entry);
+                } else {
+                    let g = (entry & !SHARED) as usize;
+                    let items = shared.groups[g]..shared.groups[g + 1];
+                    let aabb = (node.aabb.min.to_array(), node.aabb.max.to_array());
+                    return self.copy_items(shared, aabb, items, pair, depth);
                 }
             }
-            self.pairs[pair as usize] = built;
+            // Several boxes in one leaf (not with one triangle per leaf): a plain leaf.
+            (Some(shared), _) => {
+                for &b in prims {
+                    let entry = shared.entry[b as usize];
+                    if entry & SHARED == 0 {
+                        self.faces.push(entry);
+                    } else {
+                        let g = (entry & !SHARED) as usize;
+                        for item in shared.groups[g]..shared.groups[g + 1] {
+                            self.faces.extend_from_slice(shared.item(item));
+                        }
+                    }
+                }
+            }
         }
+        self.leaf_pair.resize(self.faces.len(), pair);
+        (slot, self.faces.len() as u32 - slot)
+    }
+
+    /// The `items` of [`SharedBoxes`] (all in the box `aabb`, min and max) as a child of
+    /// our pair `pair` at `depth`: a leaf for one item, else a balanced subtree of them.
+    fn copy_items(
+        &mut self,
+        shared: &SharedBoxes,
+        aabb: ([f32; 3], [f32; 3]),
+        items: std::ops::Range<u32>,
+        pair: u32,
+        depth: usize,
+    ) -> (u32, u32) {
+        if items.len() == 1 {
+            let slot = self.faces.len() as u32;
+            let faces = shared.item(items.start);
+            self.faces.extend_from_slice(faces);
+            self.leaf_pair.resize(self.faces.len(), pair);
+            let flag = if faces.len() > 1 { IDENTICAL } else { 0 };
+            return (slot, faces.len() as u32 | flag);
+        }
+        let child = self.pairs.len() as u32;
+        self.pairs.push(Pair::default());
+        self.parent.push(pair);
+        self.depth = self.depth.max(depth + 2);
+        let middle = items.start + items.len() as u32 / 2;
+        let mut built = Pair {
+            min: [aabb.0; 2],
+            max: [aabb.1; 2],
+            ..Pair::default()
+        };
+        for (k, half) in [items.start..middle, middle..items.end]
+            .into_iter()
+            .enumerate()
+        {
+            (built.link[k], built.count[k]) = self.copy_items(shared, aabb, half, child, depth + 1);
+        }
+        self.pairs[child as usize] = built;
+        (child, 0)
     }
 
     /// Number of triangles.
@@ -414,10 +723,14 @@ impl TriangleTree {
         SearchStack(Vec::with_capacity(self.depth + 1))
     }
 
-    /// Tests the triangles `first .. first + count` against `p`, keeping the best.
+    /// Tests the triangles of the leaf `first`, `count` (flag included: only the first of
+    /// identical ones) against `p`, keeping the best.
     #[inline(always)]
     fn test_leaf(&self, p: DVec3, first: u32, count: u32, best: &mut Nearest) {
-        for slot in first..first + count {
+        let tested = if count & IDENTICAL != 0 { 1 } else { count };
+        #[cfg(test)]
+        tests::count_tested(tested);
+        for slot in first..first + tested {
             let (q, d2) = self.triangles[slot as usize].closest(p);
             if d2 < best.d2 || (d2 == best.d2 && self.faces[slot as usize] < best.face) {
                 *best = Nearest {
@@ -428,6 +741,13 @@ impl TriangleTree {
                 };
             }
         }
+    }
+
+    /// Whether a child box at squared distance `d2` (length²) may hold a triangle whose
+    /// `(d², face)` is below `best`'s: `owner` is `2 × pair + child` (see the module docs).
+    #[inline(always)]
+    fn worth(&self, d2: f64, owner: usize, best: &Nearest) -> bool {
+        d2 < best.d2 || (d2 == best.d2 && self.min_face[owner] < best.face)
     }
 
     /// The nearest triangle to `p` (recentred frame: subtract [`centre`](Self::centre)).
@@ -489,7 +809,11 @@ impl TriangleTree {
             }
             let pair = &self.pairs[up as usize];
             let other = usize::from(pair.count[0] == 0 && pair.link[0] == child);
-            if pair.distance_squared(p, other) <= best.d2 {
+            if self.worth(
+                pair.distance_squared(p, other),
+                2 * up as usize + other,
+                &best,
+            ) {
                 if pair.count[other] > 0 {
                     self.test_leaf(p, pair.link[other], pair.count[other], &mut best);
                     if best.d2 < stop_below_d2 {
@@ -518,21 +842,29 @@ impl TriangleTree {
         stack.clear();
         let mut current = start;
         'descend: loop {
+            #[cfg(test)]
+            tests::count_pair();
             let pair = &self.pairs[current as usize];
+            let owner = 2 * current as usize;
             let [d0, d1] = pair.distances_squared(p);
-            let (near, far, dn, df) = if d0 <= d1 {
-                (0, 1, d0, d1)
-            } else {
+            // The nearer box first; at equal distances, the one holding the smaller face
+            // when that distance is the best one (only ties can be found there).
+            let second_first = d1 < d0
+                || (d1 == d0 && d0 == best.d2 && self.min_face[owner + 1] < self.min_face[owner]);
+            let (near, far, dn, df) = if second_first {
                 (1, 0, d1, d0)
+            } else {
+                (0, 1, d0, d1)
             };
-            if dn <= best.d2 {
-                if df <= best.d2 {
-                    stack.push(Pending {
-                        link: pair.link[far],
-                        count: pair.count[far],
-                        d2: df,
-                    });
-                }
+            if self.worth(df, owner + far, best) {
+                stack.push(Pending {
+                    link: pair.link[far],
+                    count: pair.count[far],
+                    d2: df,
+                    owner: (owner + far) as u32,
+                });
+            }
+            if self.worth(dn, owner + near, best) {
                 if pair.count[near] == 0 {
                     current = pair.link[near];
                     continue 'descend;
@@ -543,7 +875,7 @@ impl TriangleTree {
                 }
             }
             while let Some(next) = stack.pop() {
-                if next.d2 > best.d2 {
+                if !self.worth(next.d2, next.owner as usize, best) {
                     continue;
                 }
                 if next.count == 0 {
@@ -709,8 +1041,22 @@ impl TriangleTree {
             (0..3).all(|k| min[k] as f64 <= p[k] && p[k] <= max[k] as f64)
         };
         let mut check_leaf = |first: u32, count: u32, min: &[f32; 3], max: &[f32; 3]| {
+            let (flagged, count) = (count & IDENTICAL != 0, slots_of(count));
             if count == 0 || (first + count) as usize > n {
                 return Err(format!("leaf {first}+{count} out of range"));
+            }
+            if flagged {
+                let slots = first as usize..(first + count) as usize;
+                let same = &self.triangles[first as usize];
+                if count < 2
+                    || self.triangles[slots.clone()].iter().any(|t| t != same)
+                    || self.faces[slots].windows(2).any(|w| w[0] >= w[1])
+                {
+                    return Err(format!(
+                        "leaf {first}+{count} flagged identical: not 2 or more identical \
+                         triangles in increasing face order"
+                    ));
+                }
             }
             for slot in first..first + count {
                 if std::mem::replace(&mut seen_slot[slot as usize], true) {
@@ -738,6 +1084,13 @@ impl TriangleTree {
             if self.parent.get(self.root_link as usize) != Some(&u32::MAX) {
                 return Err("the root pair has a parent".into());
             }
+            if self.min_face.len() != 2 * self.pairs.len() {
+                return Err(format!(
+                    "{} smallest faces for {} pairs",
+                    self.min_face.len(),
+                    self.pairs.len()
+                ));
+            }
             let mut seen_pair = vec![false; self.pairs.len()];
             let mut todo = vec![(self.root_link, self.root_min, self.root_max)];
             while let Some((index, pmin, pmax)) = todo.pop() {
@@ -758,19 +1111,25 @@ impl TriangleTree {
                         return Err(format!("pair {index} child {k} outside its parent"));
                     }
                     let (link, count) = (pair.link[k], pair.count[k]);
-                    if count > 0 {
+                    let smallest = if count > 0 {
                         check_leaf(link, count, &min, &max)?;
-                        let slots = link as usize..(link + count) as usize;
-                        if self.leaf_pair[slots].iter().any(|&p| p != index) {
+                        let slots = link as usize..(link + slots_of(count)) as usize;
+                        if self.leaf_pair[slots.clone()].iter().any(|&p| p != index) {
                             return Err(format!(
                                 "a slot of leaf {link} not linked to pair {index}"
                             ));
                         }
+                        self.faces[slots].iter().copied().min()
                     } else {
                         if self.parent.get(link as usize) != Some(&index) {
                             return Err(format!("pair {link} not linked to its parent {index}"));
                         }
                         todo.push((link, min, max));
+                        let below = 2 * link as usize;
+                        self.min_face.get(below..below + 2).map(|m| m[0].min(m[1]))
+                    };
+                    if smallest != Some(self.min_face[2 * index as usize + k]) {
+                        return Err(format!("pair {index} child {k}: wrong smallest face"));
                     }
                 }
             }
@@ -789,6 +1148,29 @@ impl TriangleTree {
 mod tests {
     use super::*;
     use crate::closest::closest_point_on_triangle;
+    use std::cell::Cell;
+
+    thread_local! {
+        /// Triangles tested and pairs visited by this thread's searches.
+        static TESTED: Cell<u64> = const { Cell::new(0) };
+        static PAIRS: Cell<u64> = const { Cell::new(0) };
+    }
+
+    pub(super) fn count_tested(n: u32) {
+        TESTED.with(|c| c.set(c.get() + u64::from(n)));
+    }
+
+    pub(super) fn count_pair() {
+        PAIRS.with(|c| c.set(c.get() + 1));
+    }
+
+    /// Triangles tested and pairs visited by `f` on this thread.
+    fn counted<T>(f: impl FnOnce() -> T) -> (T, u64, u64) {
+        let (t0, p0) = (TESTED.with(Cell::get), PAIRS.with(Cell::get));
+        let out = f();
+        let (t1, p1) = (TESTED.with(Cell::get), PAIRS.with(Cell::get));
+        (out, t1 - t0, p1 - p0)
+    }
 
     fn lcg(state: &mut u64) -> f64 {
         *state = state
@@ -1050,6 +1432,137 @@ mod tests {
         let tree = TriangleTree::build(&v, &f).unwrap();
         let (_, _, face) = tree.query(&[[2.2, 2.2, 2.5]]).unwrap();
         assert_eq!(face[0], 50);
+    }
+
+    /// `n` faces of the soup with every vertex at one point (a mesh collapsed by a coarse
+    /// quantization), some faces repeated with permuted corners.
+    fn collapsed(n: usize, at: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        let (v, mut f) = soup(n, 4);
+        for (i, face) in f.iter_mut().enumerate() {
+            face.rotate_left(i % 3);
+        }
+        (vec![at; v.len()], f)
+    }
+
+    /// Queries around the unit cube against `tree`: each answer is brute force's (the
+    /// smallest face at the smallest distance, whatever the hint), and the triangles
+    /// tested and pairs visited per query average at most `tested` and `pairs`.
+    fn assert_bounded_and_exact(
+        tree: &TriangleTree,
+        v: &[[f64; 3]],
+        f: &[[u32; 3]],
+        tested: f64,
+        pairs: f64,
+    ) {
+        tree.validate().unwrap();
+        let mut stack = tree.stack();
+        let mut s = 17;
+        let mut hint = u32::MAX;
+        let (mut all_tested, mut all_pairs, queries) = (0, 0, 400);
+        for i in 0..queries {
+            let p = DVec3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s)) * 1.4 - 0.2;
+            let (hit, t, q) =
+                counted(|| tree.nearest_local(p - tree.centre(), hint, 0.0, &mut stack));
+            let hit = hit.unwrap();
+            (all_tested, all_pairs) = (all_tested + t, all_pairs + q);
+            let (d2, _) = brute(v, f, p);
+            assert!(
+                (hit.d2.sqrt() - d2.sqrt()).abs() < 1e-14,
+                "{} vs {d2}",
+                hit.d2
+            );
+            // Exactly the smallest (d², face) over every stored triangle (the tree's frame).
+            let exact = (0..tree.len() as u32)
+                .map(|slot| {
+                    let d2 = tree.triangle(slot).closest(p - tree.centre()).1;
+                    (d2, tree.faces[slot as usize])
+                })
+                .fold((f64::INFINITY, u32::MAX), |a, b| if b < a { b } else { a });
+            assert_eq!((hit.d2, hit.face), exact, "query {i}");
+            let unhinted = tree.nearest_local(p - tree.centre(), u32::MAX, 0.0, &mut stack);
+            assert_eq!(unhinted, Some(hit));
+            // Every hint, including a slot that is not the first of identical triangles.
+            hint = (lcg(&mut s) * f.len() as f64) as u32;
+        }
+        let (t, q) = (
+            all_tested as f64 / f64::from(queries),
+            all_pairs as f64 / f64::from(queries),
+        );
+        assert!(
+            t <= tested && q <= pairs,
+            "{t} triangles, {q} pairs per query"
+        );
+    }
+
+    /// A mesh collapsed to one point is one leaf of identical triangles: a query tests the
+    /// hint and the smallest face, and answers that face; the distances are brute force's.
+    #[test]
+    fn a_collapsed_mesh_is_one_leaf_tested_once() {
+        for at in [[0.0; 3], [0.3, -0.7, 1e3]] {
+            let (v, f) = collapsed(20_000, at);
+            let tree = TriangleTree::build(&v, &f).unwrap();
+            assert_eq!(tree.root_count, 20_000 | IDENTICAL);
+            assert_eq!(tree.depth(), 1);
+            assert_bounded_and_exact(&tree, &v, &f, 2.0, 0.0);
+            let (d, q, face) = tree.query(&[[0.0, 0.0, 5.0], at]).unwrap();
+            assert_eq!(face, [0, 0]);
+            assert_eq!(q, [at, at]);
+            assert_eq!(d[1], 0.0);
+        }
+    }
+
+    /// Without merging identical triangles, the tie rule alone (a box at exactly the best
+    /// distance is skipped unless it holds a smaller face) bounds the search on a mesh
+    /// collapsed to the centre, where every box is at the best distance: a few paths
+    /// down the tree, not the 20,000 triangles.
+    #[test]
+    fn ties_skip_boxes_without_a_smaller_face() {
+        let (v, f) = collapsed(20_000, [0.0; 3]);
+        let tree = TriangleTree::build_with(&v, &f, false).unwrap();
+        assert_eq!(tree.root_count, 0);
+        // One box holding 20,000 faces in a balanced tree (PLOC made a chain 20,000 deep).
+        assert_eq!(tree.depth(), 16);
+        // 5.8 triangles and 44 pairs per query (visiting every box at the best distance
+        // tested the 20,000 triangles).
+        assert_bounded_and_exact(&tree, &v, &f, 12.0, 80.0);
+    }
+
+    /// Half the faces collapsed to one point off the centre (padded boxes: the tie rule
+    /// does not prune them, merging does), the others a soup: exact, and bounded.
+    #[test]
+    fn a_partly_collapsed_mesh_is_exact_and_bounded() {
+        let (mut v, f) = soup(20_000, 9);
+        let at = [0.61, 0.27, 0.43];
+        for face in f.iter().step_by(2) {
+            for &i in face {
+                v[i as usize] = at;
+            }
+        }
+        let tree = TriangleTree::build(&v, &f).unwrap();
+        // 13 triangles and 82 pairs per query.
+        assert_bounded_and_exact(&tree, &v, &f, 30.0, 160.0);
+        // Repeated faces (the same indices) merge too: 7.8 triangles, 45 pairs per query.
+        let (v, f) = soup(2_000, 3);
+        let f: Vec<[u32; 3]> = f.iter().flat_map(|&t| [t; 7]).collect();
+        let tree = TriangleTree::build(&v, &f).unwrap();
+        assert_bounded_and_exact(&tree, &v, &f, 16.0, 90.0);
+        // 200 distinct triangles closer together than the f32 boxes resolve, each
+        // repeated: boxes holding several sets of identical triangles. The boxes cannot
+        // tell the 200 apart: a query nearest to them tests each (the copies once).
+        let (mut v, f) = soup(4_000, 5);
+        let mut s = 3;
+        for p in &mut v[..600] {
+            *p = [0.61, 0.27, 0.43].map(|x| x + 1e-11 * lcg(&mut s));
+        }
+        let f: Vec<[u32; 3]> = f.iter().flat_map(|&t| [t; 3]).collect();
+        let tree = TriangleTree::build(&v, &f).unwrap();
+        let shared = (0..tree.pairs.len()).any(|i| {
+            let pair = &tree.pairs[i];
+            pair.min[0] == pair.min[1] && pair.max[0] == pair.max[1]
+        });
+        assert!(shared, "no box holds several sets");
+        // 25 triangles, 74 pairs per query.
+        assert_bounded_and_exact(&tree, &v, &f, 60.0, 160.0);
     }
 
     #[test]

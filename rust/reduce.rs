@@ -82,11 +82,25 @@ pub fn referenced_bbox(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> ([f64; 3], 
     (lo.to_array(), hi.to_array())
 }
 
+/// The widening of every box in [`box_overlap`], per axis, for a mesh whose box has sides
+/// `extent`: `1e-3 × extent_axis` (at least `1e-8` of the largest side, so a flat mesh's
+/// zero side is counted). Per axis, the overlap does not change when an axis is scaled: a
+/// mesh long on one axis (two parts far apart along x) does not widen its thin axes by its
+/// length. `None` for a mesh of one point (or a non-finite extent).
+#[must_use]
+pub fn overlap_pad(extent: DVec3) -> Option<DVec3> {
+    let largest = extent.max_element();
+    if largest.is_nan() || largest <= 0.0 || !largest.is_finite() {
+        return None;
+    }
+    Some(1e-3 * extent.max(DVec3::splat(1e-5 * largest)))
+}
+
 /// How many triangle bounding boxes a point of the mesh's bounding box lies in, on average
 /// (dimensionless): `sum over faces of vol(box_f + pad) / vol(box + pad)`, every box
-/// widened by `pad = 1e-3` of the mesh's largest side so flat boxes count. A BVH query
-/// visits about this many triangles beyond the few near it. 0 for a mesh of one point.
-/// Indices must be in range (checked by the caller).
+/// widened by [`overlap_pad`] (1e-3 of the mesh's side on each axis) so flat boxes count.
+/// A BVH query visits about this many triangles beyond the few near it. 0 for a mesh of
+/// one point. Indices must be in range (checked by the caller).
 #[must_use]
 pub fn box_overlap(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
     if faces.is_empty() {
@@ -94,10 +108,9 @@ pub fn box_overlap(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
     }
     let (lo, hi) = referenced_bbox(vertices, faces);
     let extent = DVec3::from_array(hi) - DVec3::from_array(lo);
-    let pad = 1e-3 * extent.max_element();
-    if pad.is_nan() || pad <= 0.0 {
+    let Some(pad) = overlap_pad(extent) else {
         return 0.0;
-    }
+    };
     let volumes: Vec<f64> = faces
         .par_chunks(SUM_CHUNK)
         .map(|chunk| {
@@ -105,13 +118,13 @@ pub fn box_overlap(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
                 .iter()
                 .map(|f| {
                     let [a, b, c] = f.map(|i| DVec3::from_array(vertices[i as usize]));
-                    let side = a.max(b).max(c) - a.min(b).min(c) + DVec3::splat(pad);
+                    let side = a.max(b).max(c) - a.min(b).min(c) + pad;
                     side.x * side.y * side.z
                 })
                 .sum::<f64>()
         })
         .collect();
-    let whole = extent + DVec3::splat(pad);
+    let whole = extent + pad;
     volumes.iter().sum::<f64>() / (whole.x * whole.y * whole.z)
 }
 
@@ -138,6 +151,21 @@ mod tests {
         let faces: Vec<[u32; 3]> = (1..m).map(|k| [0, k, k + 1]).collect();
         assert!(box_overlap(&fan, &faces) > 5.0);
         assert_eq!(box_overlap(&v, &[]), 0.0);
+    }
+
+    #[test]
+    fn box_overlap_of_two_parts_far_apart_on_one_axis_is_that_of_one() {
+        // Two copies of a grid 1e4 apart along x: a point of the long box lies in no
+        // more boxes than a point of one copy's box (the empty middle adds none).
+        let (v, f) = crate::test_meshes::grid(100, |x, y| 0.01 * (x * 7.0).sin() * y);
+        let one = box_overlap(&v, &f);
+        let mut v2 = v.clone();
+        v2.extend(v.iter().map(|p| [p[0] + 1e4, p[1], p[2]]));
+        let n = v.len() as u32;
+        let mut f2 = f.clone();
+        f2.extend(f.iter().map(|t| t.map(|i| i + n)));
+        let two = box_overlap(&v2, &f2);
+        assert!(two <= one, "{two} against {one}");
     }
 
     #[test]

@@ -653,13 +653,32 @@ def test_overlapping_triangles_are_refused_not_measured_for_minutes():
         meshbits.compress(tangle, error=0.01, relative=True)
 
 
+def test_parts_far_apart_along_one_axis_are_measured_not_refused():
+    """Two bunnies 1e4 apart along x, one mesh: the empty middle of its long box holds no
+    triangle, so they overlap no more than one bunny does (each side was widened by 1e-3
+    of the largest, 10 m on a 0.15 m bunny: refused as 'triangles overlap')."""
+    from meshbits.mesh import box_overlap
+
+    vertices, faces = load("bunny.ply")
+    two = (
+        np.vstack([vertices, vertices + np.array([1e4, 0.0, 0.0])]),
+        np.vstack([faces, faces + len(vertices)]),
+    )
+    assert box_overlap(*two) <= box_overlap(vertices, faces)
+    clustered = meshbits.cluster(two, bits=20)
+    result = meshbits.hausdorff(two, clustered, samples=2000, tolerance=1e-6)
+    assert result.a_to_b.converged and result.b_to_a.converged
+    assert 0 < result.upper < 1e4 * 2.0**-19
+
+
 def _box_overlap_numpy(vertices: np.ndarray, faces: np.ndarray) -> float:
     """Plain numpy: the triangles' padded box volumes over the mesh's padded box volume."""
     used = np.unique(faces)
     low, high = vertices[used].min(axis=0), vertices[used].max(axis=0)
-    pad = 1e-3 * float(np.max(high - low))
-    if pad == 0:
+    largest = float(np.max(high - low))
+    if largest == 0:
         return 0.0
+    pad = 1e-3 * np.maximum(high - low, 1e-5 * largest)
     corners = vertices[faces]
     extent = corners.max(axis=1) - corners.min(axis=1) + pad
     return float(np.prod(extent, axis=1).sum() / np.prod(high - low + pad))
@@ -671,12 +690,13 @@ def _box_overlap_numpy(vertices: np.ndarray, faces: np.ndarray) -> float:
     n_faces=st.integers(1, 300),
     seed=st.integers(0, 2**32 - 1),
     scale=st.floats(1e-6, 1e6),
+    stretch=st.sampled_from([1.0, 1e-4, 1e4, 0.0]),
 )
-def test_box_overlap_matches_numpy(n_vertices, n_faces, seed, scale):
+def test_box_overlap_matches_numpy(n_vertices, n_faces, seed, scale, stretch):
     from meshbits.mesh import box_overlap
 
     rng = np.random.default_rng(seed)
-    vertices = scale * rng.normal(size=(n_vertices, 3))
+    vertices = scale * rng.normal(size=(n_vertices, 3)) * [1.0, 1.0, stretch]
     faces = rng.integers(0, n_vertices, (n_faces, 3))
     expected = _box_overlap_numpy(vertices, faces)
     assert box_overlap(vertices, faces) == pytest.approx(expected, rel=1e-9, abs=1e-300)

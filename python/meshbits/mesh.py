@@ -195,7 +195,7 @@ def as_mesh(
 
 #: Most triangle bounding boxes a point of the mesh's box may lie in, on average, before
 #: closest-point queries are refused (see :func:`box_overlap`). Surfaces score 0.03 to
-#: 0.4 (bunny 0.037, dragon 0.055, Suzanne 0.37); fan-triangulated polygons of vertices
+#: 0.4 (bunny 0.036, dragon 0.039, Suzanne 0.37); fan-triangulated polygons of vertices
 #: from all over a mesh scored 319 (5,688 faces: compress took 62 s) and 18,100 (240k
 #: faces: 10,000 queries took 140 s).
 MAX_BOX_OVERLAP = 64.0
@@ -303,7 +303,9 @@ def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nda
 def box_overlap(vertices: np.ndarray, faces: np.ndarray) -> float:
     """How many triangle bounding boxes a point of the mesh's bounding box lies in, on
     average: the sum of the triangles' box volumes over the mesh's box volume, every box
-    widened by 1e-3 of the mesh's largest side so flat boxes count. A BVH query visits
+    widened on each axis by 1e-3 of the mesh's side on that axis (at least 1e-8 of its
+    largest side) so flat boxes count; stretching an axis does not change it, and parts
+    far apart add no overlap through the empty space between them. A BVH query visits
     about this many triangles beyond the few near it (dimensionless). One parallel pass
     in the Rust core; ``faces`` must index ``vertices``."""
     vertices = np.ascontiguousarray(vertices, dtype=np.float64)
