@@ -6,8 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
-use super::MIN_LEN;
-use super::buffers::{assume_init, gather_chunks, uninit};
+use super::buffers::{MIN_LEN, assume_init, gather_chunks, uninit};
 use super::grid::{Grid, distance};
 use super::keys::group_points;
 use crate::error::{MeshError, VertexIndex, check_indices};
