@@ -29,6 +29,7 @@ pub mod sampling;
 pub mod simplify;
 #[cfg(test)]
 mod test_meshes;
+pub mod weld;
 
 pub use error::MeshError;
 

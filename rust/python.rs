@@ -861,7 +861,7 @@ fn meshopt_decode<'py>(
 }
 
 /// Faces with every vertex replaced by the smallest-index vertex of identical coordinates
-/// (see `adjacency::weld_identical`), and how many vertices were merged.
+/// (see [`crate::weld::weld_faces`]), and how many vertices were merged.
 #[pyfunction]
 fn weld<'py>(
     py: Python<'py>,
@@ -869,15 +869,7 @@ fn weld<'py>(
     faces: PyReadonlyArray2<'py, u32>,
 ) -> PyResult<(Bound<'py, PyArray2<u32>>, usize)> {
     let (v, f) = (triples(&vertices, "vertices")?, triples(&faces, "faces")?);
-    let (welded, merged) = run_detached(py, || {
-        crate::error::check_indices(f, v.len())?;
-        let w = crate::adjacency::weld_identical(v);
-        let faces: Vec<[u32; 3]> = f
-            .iter()
-            .map(|t| t.map(|i| w.canonical[i as usize]))
-            .collect();
-        Ok((faces, w.merged))
-    })?;
+    let (welded, merged) = run_detached(py, || crate::weld::weld_faces(v, f))?;
     Ok((rows(py, welded.into_flattened())?, merged))
 }
 

@@ -19,9 +19,9 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::adjacency::weld_identical;
 use crate::error::{MeshError, check_finite, check_indices};
 use crate::quantize::bounding_box;
+use crate::weld::weld_identical;
 
 /// Most attributes meshoptimizer weighs per vertex.
 pub const MAX_ATTRIBUTES: usize = 32;
@@ -135,10 +135,10 @@ pub fn simplify(
     };
     let welded: Vec<[u32; 3]>;
     let faces = if request.weld {
-        let canonical = weld_identical(vertices).canonical;
+        let weld = weld_identical(vertices);
         welded = faces
             .iter()
-            .map(|t| t.map(|i| canonical[i as usize]))
+            .map(|t| weld.face(t))
             .filter(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0])
             .collect();
         if welded.is_empty() {
