@@ -179,7 +179,7 @@ fn triples_to_array<'py>(
         .reshape([n, 3])
 }
 
-/// A BVH over one mesh's triangles (see `rust/bvh.rs`); built by `build_tree`.
+/// A BVH over one mesh's triangles (see `rust/bvh/`); built by `build_tree`.
 #[pyclass(frozen, name = "TriangleTree", module = "meshbits._core")]
 struct PyTriangleTree {
     tree: TriangleTree,

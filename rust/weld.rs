@@ -46,7 +46,7 @@ type PartitionLists = (Vec<usize>, Vec<(u64, u32)>);
 ///
 /// Triangle soups (STL files) repeat every shared vertex once per triangle; without
 /// welding every edge would look like a boundary. The vertices are split by the top bits
-/// of their hash into partitions of about [`WELD_PARTITION_TARGET`], each listed in
+/// of their hash into partitions of about `WELD_PARTITION_TARGET`, each listed in
 /// ascending index order; each partition, in parallel, runs an open-addressing table
 /// (linear probing, collisions resolved by full comparison) filled in index order, so the
 /// first (smallest) index of each set of equal vertices becomes its representative:
