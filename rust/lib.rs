@@ -16,17 +16,16 @@ pub mod adjacency;
 pub mod alloc;
 pub mod bvh;
 pub mod closest;
-pub mod codec;
 pub mod complexity;
 pub mod error;
 pub mod hausdorff;
+pub mod meshopt;
 pub mod pool;
 #[cfg(feature = "python")]
 mod python;
 pub mod quantize;
 pub mod reduce;
 pub mod sampling;
-pub mod simplify;
 #[cfg(test)]
 mod test_meshes;
 pub mod weld;

@@ -18,17 +18,16 @@ use pyo3::types::{PyBytes, PyDict};
 use rayon::prelude::*;
 
 use crate::bvh::TriangleTree;
-use crate::codec;
 use crate::complexity::{self, Estimator, Tolerances};
 use crate::error::{MeshError, VertexIndex, check_indices};
 use crate::hausdorff::{self, Options};
+use crate::meshopt;
 use crate::pool;
 use crate::quantize::{Clustering, Duplicates, Grid, GridKind};
 use crate::quantize::{
     cluster as cluster_kernel, dequantize as dequantize_kernel, quantize as quantize_kernel,
 };
 use crate::sampling;
-use crate::simplify as simplifier;
 
 create_exception!(
     meshbits,
@@ -468,7 +467,7 @@ fn hausdorff_from_samples<'py>(
     directed_dict(py, r)
 }
 
-/// meshoptimizer's simplification (see `rust/simplify.rs`): a dict with `vertex_ids`
+/// meshoptimizer's simplification (see `rust/meshopt/simplify.rs`): a dict with `vertex_ids`
 /// (kept input vertices, uint32), `faces` ((m, 3) uint32 over them) and `error` (length).
 #[pyfunction]
 #[pyo3(signature = (vertices, faces, target_faces, target_error, lock_border, locked, attributes, weights, prune, weld, update_positions))]
@@ -494,7 +493,7 @@ fn simplify<'py>(
         .transpose()
         .map_err(|e| PyValueError::new_err(format!("locked is not contiguous: {e}")))?;
     let attributes = match (&attributes, &weights) {
-        (Some(values), Some(weights)) => Some(simplifier::Attributes {
+        (Some(values), Some(weights)) => Some(meshopt::Attributes {
             values: values
                 .as_slice()
                 .map_err(|e| PyValueError::new_err(format!("attributes: {e}")))?,
@@ -509,7 +508,7 @@ fn simplify<'py>(
             ));
         }
     };
-    let request = simplifier::Request {
+    let request = meshopt::Request {
         target_faces,
         target_error,
         lock_border,
@@ -519,7 +518,7 @@ fn simplify<'py>(
         weld,
         update_positions,
     };
-    let s = run_detached(py, || simplifier::simplify(v, f, &request))?;
+    let s = run_detached(py, || meshopt::simplify(v, f, &request))?;
     let kept = s.vertex_ids.len();
     let out = PyDict::new(py);
     out.set_item("vertex_ids", s.vertex_ids.into_pyarray(py))?;
@@ -781,7 +780,7 @@ fn meshopt_encode_vertices<'py>(
     let bytes = data
         .as_slice()
         .map_err(|e| PyValueError::new_err(format!("data is not contiguous: {e}")))?;
-    let encoded = run_detached(py, || codec::encode_vertices(bytes, stride))?;
+    let encoded = run_detached(py, || meshopt::encode_vertices(bytes, stride))?;
     Ok(PyBytes::new(py, &encoded))
 }
 
@@ -794,7 +793,7 @@ fn meshopt_encode_triangles<'py>(
 ) -> PyResult<Bound<'py, PyBytes>> {
     let f = triples(&faces, "faces")?;
     let encoded = run_detached(py, || {
-        codec::encode_triangles(f.as_flattened(), vertex_count)
+        meshopt::encode_triangles(f.as_flattened(), vertex_count)
     })?;
     Ok(PyBytes::new(py, &encoded))
 }
@@ -809,7 +808,7 @@ fn meshopt_reorder<'py>(
 ) -> PyResult<(Bound<'py, PyArray2<u32>>, Bound<'py, PyAny>)> {
     let f = triples(&faces, "faces")?;
     let (triangles, old) = run_detached(py, || {
-        codec::reorder_for_codecs(f.as_flattened(), vertex_count)
+        meshopt::reorder_for_codecs(f.as_flattened(), vertex_count)
     })?;
     Ok((rows(py, triangles)?, old.into_pyarray(py).into_any()))
 }
@@ -832,7 +831,7 @@ fn meshopt_encode_octahedral<'py>(
         .map_err(|e| PyValueError::new_err(format!("vectors: {e}")))?;
     let (rows_in, _) = flat.as_chunks::<4>();
     let n = rows_in.len();
-    let encoded = run_detached(py, || codec::encode_octahedral(rows_in, bits))?;
+    let encoded = run_detached(py, || meshopt::encode_octahedral(rows_in, bits))?;
     let width = encoded.len() / n.max(1);
     encoded.into_pyarray(py).reshape([n, width])
 }
@@ -841,7 +840,7 @@ fn meshopt_encode_octahedral<'py>(
 /// `data` (the compressed bytes), `count` elements of `stride` bytes, `mode`
 /// (`"ATTRIBUTES"`, `"TRIANGLES"`, `"INDICES"`) and `filter` (`"NONE"`, `"OCTAHEDRAL"`,
 /// `"QUATERNION"`, `"EXPONENTIAL"`, `"COLOR"`; None for none): the `count * stride` plain
-/// bytes (see [`codec::decode_buffer_view`]).
+/// bytes (see [`meshopt::decode_buffer_view`]).
 #[pyfunction]
 #[pyo3(signature = (data, count, stride, mode, filter = None))]
 fn meshopt_decode<'py>(
@@ -852,10 +851,10 @@ fn meshopt_decode<'py>(
     mode: &str,
     filter: Option<&str>,
 ) -> PyResult<Bound<'py, PyBytes>> {
-    let mode = codec::Mode::from_name(mode)?;
-    let filter = codec::Filter::from_name(filter.unwrap_or("NONE"))?;
+    let mode = meshopt::Mode::from_name(mode)?;
+    let filter = meshopt::Filter::from_name(filter.unwrap_or("NONE"))?;
     let decoded = run_detached(py, || {
-        codec::decode_buffer_view(data, count, stride, mode, filter)
+        meshopt::decode_buffer_view(data, count, stride, mode, filter)
     })?;
     Ok(PyBytes::new(py, decoded.as_bytes()))
 }

@@ -23,8 +23,8 @@
 //!
 //! * *Lipschitz*: `d(·, B)` is 1-Lipschitz. If the corners have distances at most
 //!   `d₀, d₁, d₂` and `R_T` is the covering radius of `T` by its corners
-//!   ([`covering_radius`]), every point of `T` is within `R_T` of a corner, so
-//!   `max over T of d(·, B) ≤ max(d₀, d₁, d₂) + R_T`.
+//!   ([`covering_radius`](crate::closest::covering_radius)), every point of `T` is within
+//!   `R_T` of a corner, so `max over T of d(·, B) ≤ max(d₀, d₁, d₂) + R_T`.
 //! * *Convex*: for any one target triangle `t`, `d(·, B) ≤ d(·, t)`, and `d(·, t)` is the
 //!   distance to a convex set, a convex function, whose maximum over `T` is reached at a
 //!   corner. So `max over T of d(·, B) ≤ max_i d(v_i, t)`, tried for the target triangles
