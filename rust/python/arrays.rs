@@ -3,8 +3,9 @@
 //! index dtype.
 
 use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+
+use super::errors::ShapeError;
 
 /// Views an `(n, 3)` C-ordered array as `n` triples.
 pub(super) fn triples<'a, T: numpy::Element>(
@@ -13,19 +14,17 @@ pub(super) fn triples<'a, T: numpy::Element>(
 ) -> PyResult<&'a [[T; 3]]> {
     let shape = array.shape();
     if shape[1] != 3 {
-        return Err(PyValueError::new_err(format!(
+        return Err(ShapeError::new_err(format!(
             "{name} must have shape (n, 3), got ({}, {})",
             shape[0], shape[1]
         )));
     }
     if !array.is_c_contiguous() {
-        return Err(PyValueError::new_err(format!(
-            "{name} must be C-contiguous"
-        )));
+        return Err(ShapeError::new_err(format!("{name} must be C-contiguous")));
     }
     let flat = array
         .as_slice()
-        .map_err(|e| PyValueError::new_err(format!("{name} is not contiguous: {e}")))?;
+        .map_err(|e| ShapeError::new_err(format!("{name} is not contiguous: {e}")))?;
     let (chunks, rest) = flat.as_chunks::<3>();
     debug_assert!(rest.is_empty());
     Ok(chunks)

@@ -3,11 +3,11 @@
 
 use numpy::PyUntypedArrayMethods;
 use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 use super::arrays::{rows, triples};
+use super::errors::ShapeError;
 use super::pool::run_detached;
 use crate::meshopt;
 
@@ -21,7 +21,7 @@ pub(super) fn meshopt_encode_vertices<'py>(
 ) -> PyResult<Bound<'py, PyBytes>> {
     let bytes = data
         .as_slice()
-        .map_err(|e| PyValueError::new_err(format!("data is not contiguous: {e}")))?;
+        .map_err(|e| ShapeError::new_err(format!("data is not contiguous: {e}")))?;
     let encoded = run_detached(py, || meshopt::encode_vertices(bytes, stride))?;
     Ok(PyBytes::new(py, &encoded))
 }
@@ -64,13 +64,13 @@ pub(super) fn meshopt_encode_octahedral<'py>(
     bits: u32,
 ) -> PyResult<Bound<'py, PyArray2<u8>>> {
     if vectors.shape()[1] != 4 || !vectors.is_c_contiguous() {
-        return Err(PyValueError::new_err(
+        return Err(ShapeError::new_err(
             "vectors must be a C-contiguous (n, 4) float32 array",
         ));
     }
     let flat = vectors
         .as_slice()
-        .map_err(|e| PyValueError::new_err(format!("vectors: {e}")))?;
+        .map_err(|e| ShapeError::new_err(format!("vectors: {e}")))?;
     let (rows_in, _) = flat.as_chunks::<4>();
     let n = rows_in.len();
     let encoded = run_detached(py, || meshopt::encode_octahedral(rows_in, bits))?;

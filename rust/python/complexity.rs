@@ -1,11 +1,11 @@
 //! Shape complexity K ([`crate::complexity`]) for `meshbits.complexity`.
 
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::arrays::{FaceArray, triples};
+use super::errors::ParameterError;
 use super::pool::run_detached;
 use crate::complexity::{self, Estimator, Tolerances};
 
@@ -14,7 +14,7 @@ fn parse_estimator(name: &str) -> PyResult<Estimator> {
         "circumsphere" => Ok(Estimator::Circumsphere),
         "dihedral" => Ok(Estimator::Dihedral),
         "hybrid" => Ok(Estimator::Hybrid),
-        other => Err(PyValueError::new_err(format!(
+        other => Err(ParameterError::new_err(format!(
             "estimator must be 'circumsphere', 'dihedral' or 'hybrid', got {other:?}"
         ))),
     }

@@ -2,8 +2,10 @@
 //!
 //! Each wrapper borrows the numpy arrays (already normalised to C-ordered float64 vertices
 //! and uint32 faces by `meshbits/mesh.py`), checks their layout, releases the GIL around
-//! the kernel, and converts the result. Kernel errors become `meshbits.MeshbitsError`
-//! (a `ValueError`); a panic becomes a `RuntimeError` instead of tearing down Python.
+//! the kernel, and converts the result. Kernel errors become subclasses of
+//! `meshbits.MeshbitsError` (a `ValueError`), one per [`MeshError`](crate::MeshError)
+//! variant (see `errors.rs`); a panic becomes a `RuntimeError` instead of tearing down
+//! Python.
 //!
 //! **Files**, imports running one way (this file registers what the others define; the
 //! area files use `arrays`, `pool` and `errors`): `errors.rs` (the exception classes and
@@ -27,7 +29,7 @@ mod tree;
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add("MeshbitsError", m.py().get_type::<errors::MeshbitsError>())?;
+    errors::register(m)?;
     m.add(
         "BUILD_PROFILE",
         if cfg!(debug_assertions) {

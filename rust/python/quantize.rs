@@ -1,12 +1,12 @@
 //! Grid quantization and vertex clustering ([`crate::quantize`]) for `meshbits.quantize`.
 
 use numpy::{IntoPyArray, PyReadonlyArray2};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 
 use super::arrays::{FaceArray, rows, triples};
+use super::errors::ParameterError;
 use super::pool::run_detached;
 use crate::error::{MeshError, VertexIndex};
 use crate::quantize::{Clustering, Duplicates, Grid, GridKind};
@@ -18,7 +18,7 @@ fn parse_grid(name: &str) -> PyResult<GridKind> {
     match name {
         "cube" => Ok(GridKind::Cube),
         "axes" => Ok(GridKind::Axes),
-        other => Err(PyValueError::new_err(format!(
+        other => Err(ParameterError::new_err(format!(
             "grid must be 'cube' or 'axes', got {other:?}"
         ))),
     }
@@ -29,7 +29,7 @@ fn parse_duplicates(name: &str) -> PyResult<Duplicates> {
         "keep" => Ok(Duplicates::Keep),
         "oriented" => Ok(Duplicates::Oriented),
         "any" => Ok(Duplicates::Any),
-        other => Err(PyValueError::new_err(format!(
+        other => Err(ParameterError::new_err(format!(
             "duplicates must be 'keep', 'oriented' or 'any', got {other:?}"
         ))),
     }

@@ -1,11 +1,11 @@
 //! meshoptimizer's simplification ([`crate::meshopt::simplify`]) for `meshbits.simplify`.
 
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::arrays::{rows, triples, triples_to_array};
+use super::errors::{ParameterError, ShapeError};
 use super::pool::run_detached;
 use crate::meshopt;
 
@@ -33,19 +33,19 @@ pub(super) fn simplify<'py>(
         .as_ref()
         .map(|l| l.as_slice())
         .transpose()
-        .map_err(|e| PyValueError::new_err(format!("locked is not contiguous: {e}")))?;
+        .map_err(|e| ShapeError::new_err(format!("locked is not contiguous: {e}")))?;
     let attributes = match (&attributes, &weights) {
         (Some(values), Some(weights)) => Some(meshopt::Attributes {
             values: values
                 .as_slice()
-                .map_err(|e| PyValueError::new_err(format!("attributes: {e}")))?,
+                .map_err(|e| ShapeError::new_err(format!("attributes: {e}")))?,
             weights: weights
                 .as_slice()
-                .map_err(|e| PyValueError::new_err(format!("weights: {e}")))?,
+                .map_err(|e| ShapeError::new_err(format!("weights: {e}")))?,
         }),
         (None, None) => None,
         _ => {
-            return Err(PyValueError::new_err(
+            return Err(ParameterError::new_err(
                 "give attributes and weights together",
             ));
         }
