@@ -9,8 +9,9 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use meshbits::adjacency::{map_edge_blocks, weld_identical};
+use meshbits::adjacency::map_edge_blocks;
 use meshbits::complexity::{Estimator, Tolerances, shape_complexity};
+use meshbits::weld::weld_identical;
 
 /// The extension module's allocator (with the `python` feature the library installs it).
 #[cfg(not(feature = "python"))]

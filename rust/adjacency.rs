@@ -1,4 +1,5 @@
-//! Vertex welding and the unique-edge table of a triangle mesh.
+//! The unique-edge table of a triangle mesh (welding identical vertices first is
+//! [`crate::weld`]).
 //!
 //! The edge table groups the three edges of every triangle by their unordered vertex pair
 //! `(lo, hi)`, keeping the vertex opposite the edge in that triangle. Each half-edge is one
@@ -30,141 +31,6 @@ const MIN_BLOCK_BITS: u32 = 8;
 
 /// Fewest faces per chunk of the counting pass.
 const MIN_FACE_CHUNK: usize = 1 << 15;
-
-/// Vertices per partition of the parallel weld (the partition's table stays in cache).
-const WELD_PARTITION_TARGET: usize = 1 << 15;
-
-/// Result of welding vertices with bit-identical coordinates.
-#[derive(Debug, Clone)]
-pub struct Weld {
-    /// `canonical[i]` is the smallest index whose coordinates equal vertex `i`'s.
-    pub canonical: Vec<u32>,
-    /// How many vertices were mapped onto another one (`n - distinct`).
-    pub merged: usize,
-}
-
-/// Bit pattern of a coordinate with `-0.0` folded onto `+0.0`, so that equal values weld.
-#[inline]
-#[must_use]
-fn coordinate_key(x: f64) -> u64 {
-    if x == 0.0 { 0 } else { x.to_bits() }
-}
-
-/// Mixes the three coordinate keys of a vertex into a 64-bit hash (a multiply-xorshift
-/// finaliser over a running combination; collisions are resolved by full comparison).
-#[inline]
-#[must_use]
-fn vertex_hash(key: [u64; 3]) -> u64 {
-    let mut h = 0x9E37_79B9_7F4A_7C15u64;
-    for k in key {
-        h = (h ^ k).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        h ^= h >> 31;
-    }
-    h.wrapping_mul(0x94D0_49BB_1331_11EB) ^ (h >> 29)
-}
-
-/// One chunk's vertices listed by weld partition: the partitions' starts, and each
-/// vertex's `(hash, index)` in partition order.
-type PartitionLists = (Vec<usize>, Vec<(u64, u32)>);
-
-/// Welds vertices whose three coordinates are exactly equal (`-0.0 == 0.0`).
-///
-/// Triangle soups (STL files) repeat every shared vertex once per triangle; without
-/// welding every edge would look like a boundary. The vertices are split by the top bits
-/// of their hash into partitions of about [`WELD_PARTITION_TARGET`], each listed in
-/// ascending index order; each partition, in parallel, runs an open-addressing table
-/// (linear probing, collisions resolved by full comparison) filled in index order, so the
-/// first (smallest) index of each set of equal vertices becomes its representative:
-/// expected O(n), the same for any thread count.
-#[must_use]
-pub fn weld_identical(vertices: &[[f64; 3]]) -> Weld {
-    let n = vertices.len();
-    let key = |v: &[f64; 3]| {
-        [
-            coordinate_key(v[0]),
-            coordinate_key(v[1]),
-            coordinate_key(v[2]),
-        ]
-    };
-    let hashes: Vec<u64> = vertices
-        .par_iter()
-        .with_min_len(1 << 12)
-        .map(|v| vertex_hash(key(v)))
-        .collect();
-    let part_bits = (n / WELD_PARTITION_TARGET)
-        .max(1)
-        .next_power_of_two()
-        .trailing_zeros();
-    let parts = 1usize << part_bits;
-    let part_of = |h: u64| (h >> 32 >> (32 - part_bits)) as usize;
-    // Each chunk lists its vertices by partition, in index order, each with its hash: the
-    // partitions then read their lists in sequence and touch a vertex only when its hash
-    // matches an earlier one's.
-    let chunk = n.div_ceil(4 * rayon::current_num_threads()).max(1 << 14);
-    let lists: Vec<PartitionLists> = hashes
-        .par_chunks(chunk)
-        .enumerate()
-        .map(|(c, hs)| {
-            let mut start = vec![0usize; parts + 1];
-            for &h in hs {
-                start[part_of(h) + 1] += 1;
-            }
-            for p in 0..parts {
-                start[p + 1] += start[p];
-            }
-            let mut cursor = start.clone();
-            let mut list = vec![(0u64, 0u32); hs.len()];
-            for (j, &h) in hs.iter().enumerate() {
-                let slot = &mut cursor[part_of(h)];
-                list[*slot] = (h, (c * chunk + j) as u32);
-                *slot += 1;
-            }
-            (start, list)
-        })
-        .collect();
-    // Each partition, in index order: the pairs (vertex, earlier equal vertex).
-    let merges: Vec<Vec<(u32, u32)>> = (0..parts)
-        .into_par_iter()
-        .map_init(Vec::new, |slots: &mut Vec<(u64, u32)>, p| {
-            let len: usize = lists.iter().map(|(s, _)| s[p + 1] - s[p]).sum();
-            let capacity = (2 * len).next_power_of_two().max(16);
-            let mask = capacity - 1;
-            slots.clear();
-            slots.resize(capacity, (0, u32::MAX));
-            let mut merges = Vec::new();
-            for (start, list) in &lists {
-                for &(h, i) in &list[start[p]..start[p + 1]] {
-                    let mut slot = (h as usize) & mask;
-                    loop {
-                        let (occupant_hash, occupant) = slots[slot];
-                        if occupant == u32::MAX {
-                            slots[slot] = (h, i);
-                            break;
-                        }
-                        if occupant_hash == h
-                            && key(&vertices[occupant as usize]) == key(&vertices[i as usize])
-                        {
-                            merges.push((i, occupant));
-                            break;
-                        }
-                        slot = (slot + 1) & mask;
-                    }
-                }
-            }
-            merges
-        })
-        .collect();
-    let mut canonical: Vec<u32> = (0..n as u32)
-        .into_par_iter()
-        .with_min_len(1 << 12)
-        .collect();
-    let mut merged = 0;
-    for (i, first) in merges.into_iter().flatten() {
-        canonical[i as usize] = first;
-        merged += 1;
-    }
-    Weld { canonical, merged }
-}
 
 /// True when a face repeats a vertex index: it has no area and no well-defined edges.
 #[inline]
@@ -324,47 +190,14 @@ where
     F: Fn(BlockEdges<'_>) -> R + Sync,
 {
     let blocks = vertex_count.div_ceil(1 << block_bits).max(1);
-    let block_mask = (1u32 << block_bits) - 1;
     let parts = (4 * rayon::current_num_threads())
         .min(faces.len() / MIN_FACE_CHUNK)
         .max(1);
     let chunk = faces.len().div_ceil(parts).max(1);
     // Step 1: per chunk, its half-edges by block (`start[b]..start[b + 1]`).
-    let chunks: Vec<(Vec<usize>, Vec<K>, usize)> = faces
+    let chunks: Vec<ChunkHalfEdges<K>> = faces
         .par_chunks(chunk)
-        .map(|chunk| {
-            let mut start = vec![0usize; blocks + 1];
-            let mut degenerate = 0;
-            for f in chunk {
-                let [a, b, c] = corners(f);
-                if is_index_degenerate(&[a, b, c]) {
-                    degenerate += 1;
-                    continue;
-                }
-                for lo in [a.min(b), b.min(c), c.min(a)] {
-                    start[(lo >> block_bits) as usize + 1] += 1;
-                }
-            }
-            for b in 0..blocks {
-                start[b + 1] += start[b];
-            }
-            let mut cursor = start.clone();
-            let mut keys = vec![K::default(); start[blocks]];
-            for f in chunk {
-                let t = corners(f);
-                if is_index_degenerate(&t) {
-                    continue;
-                }
-                for k in 0..3 {
-                    let (a, b, o) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                    let (lo, hi) = (a.min(b), a.max(b));
-                    let slot = &mut cursor[(lo >> block_bits) as usize];
-                    keys[*slot] = K::pack(lo & block_mask, hi, o, v);
-                    *slot += 1;
-                }
-            }
-            (start, keys, degenerate)
-        })
+        .map(|chunk| chunk_half_edges(chunk, blocks, block_bits, v))
         .collect();
     let degenerate = chunks.iter().map(|c| c.2).sum();
     // Step 2: per block, gather, sort by (lo, hi, opposite), split into edges.
@@ -373,49 +206,7 @@ where
         .map_init(BlockScratch::<K>::default, |s, b| {
             let base = (b as u32) << block_bits;
             let size = (vertex_count - base as usize).min(1 << block_bits);
-            s.count.clear();
-            s.count.resize(size + 1, 0);
-            for (start, keys, _) in &chunks {
-                for &key in &keys[start[b]..start[b + 1]] {
-                    s.count[key.local(v) + 1] += 1;
-                }
-            }
-            for i in 0..size {
-                s.count[i + 1] += s.count[i];
-            }
-            let total = s.count[size] as usize;
-            s.sorted.clear();
-            s.sorted.resize(total, K::default());
-            for (start, keys, _) in &chunks {
-                for &key in &keys[start[b]..start[b + 1]] {
-                    let slot = &mut s.count[key.local(v)];
-                    s.sorted[*slot as usize] = key;
-                    *slot += 1;
-                }
-            }
-            // `count[i]` now ends vertex `i`'s run (and starts vertex `i + 1`'s).
-            s.edges.clear();
-            s.starts.clear();
-            s.opposite.clear();
-            let mut begin = 0;
-            for i in 0..size {
-                let end = s.count[i] as usize;
-                let run = &mut s.sorted[begin..end];
-                run.sort_unstable();
-                let lo = base + i as u32;
-                let mut previous = None;
-                for &key in run.iter() {
-                    let hi = key.hi(v);
-                    if previous != Some(hi) {
-                        s.edges.push([lo, hi]);
-                        s.starts.push(s.opposite.len() as u32);
-                        previous = Some(hi);
-                    }
-                    s.opposite.push(key.opposite(v));
-                }
-                begin = end;
-            }
-            s.starts.push(s.opposite.len() as u32);
+            block_edges(s, &chunks, b, base, size, v);
             consume(BlockEdges {
                 edges: &s.edges,
                 starts: &s.starts,
@@ -424,6 +215,111 @@ where
         })
         .collect();
     (results, degenerate)
+}
+
+/// One chunk of faces' half-edges, counting-sorted by block: the blocks' starts
+/// (`start[b]..start[b + 1]`), the packed keys, and the faces that repeat a vertex index
+/// (left out).
+type ChunkHalfEdges<K> = (Vec<usize>, Vec<K>, usize);
+
+/// Step 1 of [`map_blocks_with`] on one chunk of faces: one pass to count the half-edges
+/// of each block of `2^block_bits` vertices (by their `lo` vertex), one to place them.
+#[inline]
+fn chunk_half_edges<K: HalfEdgeKey, I: VertexIndex>(
+    chunk: &[[I; 3]],
+    blocks: usize,
+    block_bits: u32,
+    v: u32,
+) -> ChunkHalfEdges<K> {
+    let block_mask = (1u32 << block_bits) - 1;
+    let mut start = vec![0usize; blocks + 1];
+    let mut degenerate = 0;
+    for f in chunk {
+        let [a, b, c] = corners(f);
+        if is_index_degenerate(&[a, b, c]) {
+            degenerate += 1;
+            continue;
+        }
+        for lo in [a.min(b), b.min(c), c.min(a)] {
+            start[(lo >> block_bits) as usize + 1] += 1;
+        }
+    }
+    for b in 0..blocks {
+        start[b + 1] += start[b];
+    }
+    let mut cursor = start.clone();
+    let mut keys = vec![K::default(); start[blocks]];
+    for f in chunk {
+        let t = corners(f);
+        if is_index_degenerate(&t) {
+            continue;
+        }
+        for k in 0..3 {
+            let (a, b, o) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            let (lo, hi) = (a.min(b), a.max(b));
+            let slot = &mut cursor[(lo >> block_bits) as usize];
+            keys[*slot] = K::pack(lo & block_mask, hi, o, v);
+            *slot += 1;
+        }
+    }
+    (start, keys, degenerate)
+}
+
+/// Step 2 of [`map_blocks_with`] for block `b` (vertices `base .. base + size`): its
+/// half-edges gathered from every chunk, counting-sorted by `lo`, each vertex's few
+/// entries sorted, and runs of equal `(lo, hi)` written to `s` as the block's edges.
+#[inline]
+fn block_edges<K: HalfEdgeKey>(
+    s: &mut BlockScratch<K>,
+    chunks: &[ChunkHalfEdges<K>],
+    b: usize,
+    base: u32,
+    size: usize,
+    v: u32,
+) {
+    s.count.clear();
+    s.count.resize(size + 1, 0);
+    for (start, keys, _) in chunks {
+        for &key in &keys[start[b]..start[b + 1]] {
+            s.count[key.local(v) + 1] += 1;
+        }
+    }
+    for i in 0..size {
+        s.count[i + 1] += s.count[i];
+    }
+    let total = s.count[size] as usize;
+    s.sorted.clear();
+    s.sorted.resize(total, K::default());
+    for (start, keys, _) in chunks {
+        for &key in &keys[start[b]..start[b + 1]] {
+            let slot = &mut s.count[key.local(v)];
+            s.sorted[*slot as usize] = key;
+            *slot += 1;
+        }
+    }
+    // `count[i]` now ends vertex `i`'s run (and starts vertex `i + 1`'s).
+    s.edges.clear();
+    s.starts.clear();
+    s.opposite.clear();
+    let mut begin = 0;
+    for i in 0..size {
+        let end = s.count[i] as usize;
+        let run = &mut s.sorted[begin..end];
+        run.sort_unstable();
+        let lo = base + i as u32;
+        let mut previous = None;
+        for &key in run.iter() {
+            let hi = key.hi(v);
+            if previous != Some(hi) {
+                s.edges.push([lo, hi]);
+                s.starts.push(s.opposite.len() as u32);
+                previous = Some(hi);
+            }
+            s.opposite.push(key.opposite(v));
+        }
+        begin = end;
+    }
+    s.starts.push(s.opposite.len() as u32);
 }
 
 /// Unique undirected edges of a triangle mesh with the vertex opposite each edge in each
@@ -609,43 +505,5 @@ mod tests {
             (a.edges, a.starts, a.opposite),
             (b.edges, b.starts, b.opposite)
         );
-    }
-
-    #[test]
-    fn weld_over_many_partitions_matches_a_brute_force_map() {
-        // 100k vertices drawn from 3000 distinct points (and signed zeros): 4 partitions.
-        let points: Vec<[f64; 3]> = (0..3000)
-            .map(|i| [f64::from(i % 17), f64::from(i / 17) * 0.5, 0.0])
-            .collect();
-        let v: Vec<[f64; 3]> = (0..100_000u32)
-            .map(|i| {
-                let mut p = points[((i as u64 * 2_654_435_761) % 3000) as usize];
-                if i % 3 == 0 {
-                    p[2] = -0.0;
-                }
-                p
-            })
-            .collect();
-        let weld = weld_identical(&v);
-        let mut first = std::collections::HashMap::new();
-        for (i, p) in v.iter().enumerate() {
-            let key = p.map(coordinate_key);
-            let f = *first.entry(key).or_insert(i as u32);
-            assert_eq!(weld.canonical[i], f, "vertex {i}");
-        }
-        assert_eq!(weld.merged, v.len() - first.len());
-    }
-
-    #[test]
-    fn weld_maps_to_smallest_index_and_folds_signed_zero() {
-        let v = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [-0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-        ];
-        let weld = weld_identical(&v);
-        assert_eq!(weld.canonical, vec![0, 1, 0, 1]);
-        assert_eq!(weld.merged, 2);
     }
 }

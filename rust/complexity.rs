@@ -32,9 +32,10 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::adjacency::{BlockEdges, is_index_degenerate, map_edge_blocks, weld_identical};
+use crate::adjacency::{BlockEdges, is_index_degenerate, map_edge_blocks};
 use crate::error::{MeshError, VertexIndex, check_extent, check_finite, check_indices};
 use crate::reduce::{SUM_CHUNK, deterministic_sum_parts};
+use crate::weld::weld_identical;
 
 /// Which per-edge estimate of `p(e) / r(e)` to sum.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

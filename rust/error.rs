@@ -1,6 +1,6 @@
 //! Every way a kernel refuses its input.
 //!
-//! Kernels return `Result<_, MeshError>`; the binding layer (`python.rs`) maps each
+//! Kernels return `Result<_, MeshError>`; the binding layer (`python/errors.rs`) maps each
 //! variant to a Python exception. Nothing in the kernels panics on user data.
 
 use std::fmt;

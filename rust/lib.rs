@@ -6,29 +6,30 @@
 //! samples ([`sampling`]), a triangle BVH ([`bvh`]) and exact point-triangle distances
 //! ([`closest`]). Kernels take plain slices (`&[[f64; 3]]` vertices,
 //! `&[[u32; 3]]` faces), return `Result<_, MeshError>` and never panic on user data. The
-//! only file that knows Python is `python.rs`, built with the `python` feature (the
+//! only module that knows Python is `python/`, built with the `python` feature (the
 //! extension module `meshbits._core`, which maturin builds); without it the crate builds
 //! and tests from Rust alone.
 //!
-//! Grid quantization to B bits and vertex clustering: [`quantize`].
+//! Grid quantization to B bits and vertex clustering: [`quantize`]. Vertex welding:
+//! [`weld`]. meshoptimizer's simplifier and glTF codecs: [`meshopt`].
 
 pub mod adjacency;
 pub mod alloc;
 pub mod bvh;
 pub mod closest;
-pub mod codec;
 pub mod complexity;
 pub mod error;
 pub mod hausdorff;
+pub mod meshopt;
 pub mod pool;
 #[cfg(feature = "python")]
 mod python;
 pub mod quantize;
 pub mod reduce;
 pub mod sampling;
-pub mod simplify;
 #[cfg(test)]
 mod test_meshes;
+pub mod weld;
 
 pub use error::MeshError;
 

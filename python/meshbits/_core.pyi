@@ -1,4 +1,4 @@
-"""Typed stubs for the native module ``meshbits._core`` (see ``rust/python.rs``)."""
+"""Typed stubs for the native module ``meshbits._core`` (see ``rust/python/``)."""
 
 from typing import TypedDict, final
 
@@ -104,8 +104,14 @@ class _SimplifiedDict(_SimplifiedBase, total=False):
 
 __all__ = [
     "BUILD_PROFILE",
+    "EmptyMeshError",
+    "IndexOutOfRangeError",
     "MeshbitsError",
+    "NonFiniteError",
+    "OutsideBoxError",
+    "ParameterError",
     "SampledMesh",
+    "ShapeError",
     "TriangleTree",
     "__version__",
     "box_overlap",
@@ -134,6 +140,14 @@ __version__: str
 BUILD_PROFILE: str
 
 class MeshbitsError(ValueError): ...
+
+# One class per refusal of the kernels (``rust/error.rs``), all under ``MeshbitsError``.
+class ShapeError(MeshbitsError): ...
+class NonFiniteError(MeshbitsError): ...
+class IndexOutOfRangeError(MeshbitsError): ...
+class EmptyMeshError(MeshbitsError): ...
+class ParameterError(MeshbitsError): ...
+class OutsideBoxError(MeshbitsError): ...
 
 def shape_complexity(
     vertices: npt.NDArray[np.float64],

@@ -5,13 +5,36 @@ bits out of range, an unreadable file, a budget that is not a positive number) i
 :class:`MeshbitsError`, a ``ValueError``; ``TypeError`` means an argument of the wrong
 type. Anything else escaping meshbits is a bug: the ``meshbits`` program reports it as an
 internal error (exit code 3).
+
+The native kernels raise one subclass per kind of refusal: :class:`ShapeError` (an array's
+shape, dtype or layout), :class:`NonFiniteError` (a NaN or infinite coordinate),
+:class:`IndexOutOfRangeError` (a face index), :class:`EmptyMeshError` (no vertices or no
+faces), :class:`ParameterError` (a parameter out of range) and :class:`OutsideBoxError` (a
+point outside a quantization box).
 """
 
 from __future__ import annotations
 
-from ._core import MeshbitsError
+from ._core import (
+    EmptyMeshError,
+    IndexOutOfRangeError,
+    MeshbitsError,
+    NonFiniteError,
+    OutsideBoxError,
+    ParameterError,
+    ShapeError,
+)
 
-__all__ = ["MeshFileError", "MeshbitsError"]
+__all__ = [
+    "EmptyMeshError",
+    "IndexOutOfRangeError",
+    "MeshFileError",
+    "MeshbitsError",
+    "NonFiniteError",
+    "OutsideBoxError",
+    "ParameterError",
+    "ShapeError",
+]
 
 
 class MeshFileError(MeshbitsError):

@@ -4,7 +4,7 @@ The error ``E`` of the paper is the Hausdorff distance ``H(O, A)`` between the o
 ``O`` and its approximation ``A``: ``H(A, B) = max(h(A, B), h(B, A))`` with the one-sided
 ``h(A, B) = max over p in A of min over q in B of |p - q|``. :func:`hausdorff` measures it
 on seeded samples of both surfaces, with exact float64 point-to-triangle distances found
-through a BVH (``rust/bvh.rs``), and can certify an upper bound.
+through a BVH (``rust/bvh/``), and can certify an upper bound.
 """
 
 from __future__ import annotations

@@ -2,10 +2,17 @@
 //! primitive they use: buffers allocated without a fill pass and declared initialised once
 //! written, and a slice several threads write at disjoint indices. The callers' `unsafe`
 //! blocks only ever call these, each with a `SAFETY` comment stating why the contract holds.
+//! The work-unit sizes of the parallel passes sit here too.
 
 use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
+
+/// Points or keys per parallel work unit (bounding box, digit counts).
+pub(super) const CHUNK: usize = 1 << 16;
+
+/// Smallest number of items per rayon task in element-wise passes.
+pub(super) const MIN_LEN: usize = 1 << 12;
 
 /// A buffer of `len` uninitialized items, for one that is written in full before it is
 /// read: `vec![x; len]` would first fill it (a pass over memory that the kernels then

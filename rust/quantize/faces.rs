@@ -6,10 +6,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
-use super::MIN_LEN;
-use super::buffers::{assume_init, gather_chunks, uninit};
+use super::buffers::{MIN_LEN, assume_init, gather_chunks, uninit};
 use super::grid::{Grid, distance};
-use super::keys::group_points;
+use super::keys::{Clusters, group_points};
 use crate::error::{MeshError, VertexIndex, check_indices};
 
 /// Faces per parallel work unit in the face pass of [`cluster`].
@@ -150,16 +149,50 @@ pub fn cluster<I: VertexIndex>(
         )));
     }
     let (clusters, max_displacement_all) = group_points(vertices, grid)?;
-    let id = &clusters.id;
     let count = clusters.count();
-
-    // One pass over the faces in parallel chunks: corners to cluster ids (checking the
-    // indices), degenerate faces (two equal corners) dropped, kept faces packed at the
-    // front of their chunk with their input index, then (while the chunk is in cache)
-    // their clusters marked used. Every face is written at the chunk's cursor, which
-    // only a kept face advances: no unpredictable branch when about half the faces
-    // collapse.
     let used: Vec<AtomicBool> = (0..count).map(|_| AtomicBool::new(false)).collect();
+    let (mut out_faces, mut face_index) = remap_faces(faces, &clusters.id, &used, n)?;
+    let degenerate_faces = m - out_faces.len();
+    let duplicate_faces = drop_duplicates(&mut out_faces, &mut face_index, duplicates);
+    let unreferenced_vertices = used
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .filter(|u| !u.load(Ordering::Relaxed))
+        .count();
+    let kept = if unreferenced_vertices == 0 {
+        all_clusters(grid, clusters, max_displacement_all)
+    } else {
+        used_clusters(vertices, grid, clusters, &used, &mut out_faces)
+    };
+    Ok(Clustering {
+        merged_vertices: n - count,
+        unreferenced_vertices,
+        degenerate_faces,
+        duplicate_faces,
+        max_displacement: kept.max_displacement,
+        vertices: kept.vertices,
+        codes: kept.codes,
+        faces: out_faces,
+        face_index,
+        vertex_map: kept.vertex_map,
+    })
+}
+
+/// The face pass of [`cluster`]: corners to cluster ids `id` (checking the indices against
+/// `n` vertices), degenerate faces (two equal corners) dropped, the kept faces in input
+/// order with their input index; the clusters they use are marked in `used`.
+///
+/// One pass over the faces in parallel chunks: kept faces are packed at the front of their
+/// chunk with their input index, then (while the chunk is in cache) their clusters marked
+/// used. Every face is written at the chunk's cursor, which only a kept face advances: no
+/// unpredictable branch when about half the faces collapse.
+fn remap_faces<I: VertexIndex>(
+    faces: &[[I; 3]],
+    id: &[u32],
+    used: &[AtomicBool],
+    n: usize,
+) -> Result<(Vec<[u32; 3]>, Vec<u32>), MeshError> {
+    let m = faces.len();
     let mut packed = uninit::<[u32; 3]>(m);
     let mut packed_index = uninit::<u32>(m);
     let chunks: Vec<(usize, bool)> = packed
@@ -196,9 +229,8 @@ pub fn cluster<I: VertexIndex>(
         check_indices(faces, n)?;
     }
     let kept_per_chunk: Vec<usize> = chunks.iter().map(|&(kept, _)| kept).collect();
-    let degenerate_faces = m - kept_per_chunk.iter().sum::<usize>();
     // Each chunk wrote its first `kept` items (all of them when no face was dropped).
-    let (mut out_faces, mut face_index) = if degenerate_faces == 0 {
+    Ok(if kept_per_chunk.iter().sum::<usize>() == m {
         // SAFETY: every chunk kept, so wrote, all its faces.
         unsafe { (assume_init(packed), assume_init(packed_index)) }
     } else {
@@ -209,118 +241,137 @@ pub fn cluster<I: VertexIndex>(
                 gather_chunks(&packed_index, FACE_CHUNK, &kept_per_chunk),
             )
         }
-    };
+    })
+}
+
+/// Drops from `faces` (and their input indices `face_index`) every face repeating an
+/// earlier one under `mode`; returns how many were dropped. A repeated face's clusters are
+/// its kept original's, so the clusters marked used stay right.
+fn drop_duplicates(
+    faces: &mut Vec<[u32; 3]>,
+    face_index: &mut Vec<u32>,
+    mode: Duplicates,
+) -> usize {
+    if mode == Duplicates::Keep {
+        return 0;
+    }
+    let mut keyed: Vec<([u32; 3], u32)> = faces
+        .par_iter()
+        .enumerate()
+        .map(|(i, t)| (face_key(*t, mode), i as u32))
+        .collect();
+    // Positions are unique, so the order is total and the sort deterministic.
+    keyed.par_sort_unstable();
     let mut duplicate_faces = 0;
-    if duplicates != Duplicates::Keep {
-        let mut keyed: Vec<([u32; 3], u32)> = out_faces
-            .par_iter()
-            .enumerate()
-            .map(|(i, t)| (face_key(*t, duplicates), i as u32))
-            .collect();
-        // Positions are unique, so the order is total and the sort deterministic.
-        keyed.par_sort_unstable();
-        for w in keyed.windows(2) {
-            if w[0].0 == w[1].0 {
-                out_faces[w[1].1 as usize] = [DROPPED; 3];
-                duplicate_faces += 1;
-            }
-        }
-        if duplicate_faces > 0 {
-            // A repeated face's clusters are its kept original's: `used` stays right.
-            let (faces, position) = compact(&out_faces, out_faces.len() - duplicate_faces);
-            face_index = position.iter().map(|&i| face_index[i as usize]).collect();
-            out_faces = faces;
+    for w in keyed.windows(2) {
+        if w[0].0 == w[1].0 {
+            faces[w[1].1 as usize] = [DROPPED; 3];
+            duplicate_faces += 1;
         }
     }
+    if duplicate_faces > 0 {
+        let (kept, position) = compact(faces, faces.len() - duplicate_faces);
+        *face_index = position.iter().map(|&i| face_index[i as usize]).collect();
+        *faces = kept;
+    }
+    duplicate_faces
+}
 
-    let unreferenced_vertices = used
+/// The output vertices of [`cluster`]: per input vertex its output vertex (-1: dropped),
+/// the kept clusters' codes and dequantised positions, and the largest displacement of a
+/// kept input vertex (length).
+struct KeptClusters {
+    vertex_map: Vec<i64>,
+    codes: Vec<[u32; 3]>,
+    vertices: Vec<[f64; 3]>,
+    max_displacement: f64,
+}
+
+/// The dequantised positions of `codes` on `grid`.
+fn positions(grid: &Grid, codes: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    codes
         .par_iter()
         .with_min_len(MIN_LEN)
-        .filter(|u| !u.load(Ordering::Relaxed))
-        .count();
-    let positions = |codes: &[[u32; 3]]| -> Vec<[f64; 3]> {
-        codes
-            .par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|q| grid.position(q))
-            .collect()
-    };
-    let (vertex_map, out_codes, out_vertices, max_displacement) = if unreferenced_vertices == 0 {
-        // Every cluster is kept, with its number: the code pass measured every vertex.
-        let vertex_map: Vec<i64> = id
-            .par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|&c| i64::from(c))
-            .collect();
-        let out_vertices = positions(&clusters.code);
-        (
-            vertex_map,
-            clusters.code,
-            out_vertices,
-            max_displacement_all,
-        )
-    } else {
-        // New numbers by prefix count over the used clusters: kept ones keep their order.
-        let mut new_id = vec![DROPPED; count];
-        let mut kept: Vec<u32> = Vec::with_capacity(count - unreferenced_vertices);
-        for (c, u) in used.iter().enumerate() {
-            if u.load(Ordering::Relaxed) {
-                new_id[c] = kept.len() as u32;
-                kept.push(c as u32);
-            }
-        }
-        out_faces
-            .par_iter_mut()
-            .with_min_len(MIN_LEN)
-            .for_each(|t| {
-                *t = [
-                    new_id[t[0] as usize],
-                    new_id[t[1] as usize],
-                    new_id[t[2] as usize],
-                ];
-            });
-        let vertex_map: Vec<i64> = id
-            .par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|&c| match new_id[c as usize] {
-                DROPPED => -1,
-                k => i64::from(k),
-            })
-            .collect();
-        let out_codes: Vec<[u32; 3]> = kept
-            .par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|&c| clusters.code[c as usize])
-            .collect();
-        let out_vertices = positions(&out_codes);
-        let max_displacement = vertices
-            .par_iter()
-            .with_min_len(MIN_LEN)
-            .zip(&vertex_map)
-            .map(|(p, &k)| {
-                if k >= 0 {
-                    distance(p, &out_vertices[k as usize])
-                } else {
-                    0.0
-                }
-            })
-            .reduce(|| 0.0, f64::max);
-        (vertex_map, out_codes, out_vertices, max_displacement)
-    };
-    let merged_vertices = n - count;
+        .map(|q| grid.position(q))
+        .collect()
+}
 
-    Ok(Clustering {
-        merged_vertices,
-        unreferenced_vertices,
-        degenerate_faces,
-        duplicate_faces,
-        max_displacement,
-        vertices: out_vertices,
-        codes: out_codes,
-        faces: out_faces,
-        face_index,
+/// Every cluster is kept, with its number: the code pass measured every vertex
+/// (`max_displacement`).
+fn all_clusters(grid: &Grid, clusters: Clusters, max_displacement: f64) -> KeptClusters {
+    let vertex_map: Vec<i64> = clusters
+        .id
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .map(|&c| i64::from(c))
+        .collect();
+    let out_vertices = positions(grid, &clusters.code);
+    KeptClusters {
         vertex_map,
-    })
+        codes: clusters.code,
+        vertices: out_vertices,
+        max_displacement,
+    }
+}
+
+/// Only the `used` clusters are kept, renumbered by prefix count (kept ones keep their
+/// order); `faces` are renumbered alike.
+fn used_clusters(
+    vertices: &[[f64; 3]],
+    grid: &Grid,
+    clusters: Clusters,
+    used: &[AtomicBool],
+    faces: &mut [[u32; 3]],
+) -> KeptClusters {
+    let count = clusters.count();
+    let mut new_id = vec![DROPPED; count];
+    let mut kept: Vec<u32> = Vec::with_capacity(count);
+    for (c, u) in used.iter().enumerate() {
+        if u.load(Ordering::Relaxed) {
+            new_id[c] = kept.len() as u32;
+            kept.push(c as u32);
+        }
+    }
+    faces.par_iter_mut().with_min_len(MIN_LEN).for_each(|t| {
+        *t = [
+            new_id[t[0] as usize],
+            new_id[t[1] as usize],
+            new_id[t[2] as usize],
+        ];
+    });
+    let vertex_map: Vec<i64> = clusters
+        .id
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .map(|&c| match new_id[c as usize] {
+            DROPPED => -1,
+            k => i64::from(k),
+        })
+        .collect();
+    let out_codes: Vec<[u32; 3]> = kept
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .map(|&c| clusters.code[c as usize])
+        .collect();
+    let out_vertices = positions(grid, &out_codes);
+    let max_displacement = vertices
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .zip(&vertex_map)
+        .map(|(p, &k)| {
+            if k >= 0 {
+                distance(p, &out_vertices[k as usize])
+            } else {
+                0.0
+            }
+        })
+        .reduce(|| 0.0, f64::max);
+    KeptClusters {
+        vertex_map,
+        codes: out_codes,
+        vertices: out_vertices,
+        max_displacement,
+    }
 }
 
 #[cfg(test)]

@@ -5,9 +5,8 @@ use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
-use super::buffers::{assume_init, uninit};
-use super::keys::{MAX_KEY_BITS, PackedCode};
-use super::{CHUNK, MIN_LEN};
+use super::buffers::{CHUNK, MIN_LEN, assume_init, uninit};
+use super::packed::{MAX_KEY_BITS, PackedCode};
 use crate::error::{MeshError, check_finite};
 
 /// Largest supported bits per coordinate: codes are `u32`.

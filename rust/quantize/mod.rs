@@ -34,28 +34,24 @@
 //! and small per-partition hash tables, above by a stable LSD radix sort; either way the
 //! groups are numbered by their smallest vertex index.
 //!
-//! Files, one concept each: `grid.rs` (the box, its step and the rounding of coordinates to
-//! codes), `keys.rs` (codes packed into integers and grouped into clusters), `faces.rs` (the
-//! face pass of [`cluster`]: remapping, dropping collapsed and repeated faces, compaction)
-//! and `buffers.rs` (the uninitialised and disjointly written parallel buffers: the
-//! module's unsafe primitives, all in one place).
+//! Files, one concept each, imports running one way (`faces` -> `keys` -> `grid` ->
+//! `packed`): `grid.rs` (the box, its step and the rounding of coordinates to codes),
+//! `packed.rs` (three codes packed into one integer), `keys.rs` (packed codes grouped into
+//! clusters), `faces.rs` (the face pass of [`cluster`]: remapping, dropping collapsed and
+//! repeated faces, compaction) and `buffers.rs` (the uninitialised and disjointly written
+//! parallel buffers: the module's unsafe primitives, all in one place).
 
 mod buffers;
 mod faces;
 mod grid;
 mod keys;
+mod packed;
 
 pub use faces::{Clustering, Duplicates, cluster};
 pub use grid::{
     Grid, GridKind, MAX_BITS, Quantized, bounding_box, check_bits, dequantize, max_code, quantize,
 };
 pub use keys::{Clusters, group_codes, group_points};
-
-/// Points or keys per parallel work unit (bounding box, digit counts).
-const CHUNK: usize = 1 << 16;
-
-/// Smallest number of items per rayon task in element-wise passes.
-const MIN_LEN: usize = 1 << 12;
 
 /// SplitMix64, the deterministic generator of the test data.
 #[cfg(test)]

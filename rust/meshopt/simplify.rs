@@ -1,27 +1,11 @@
-//! Error-bounded, attribute-aware edge-collapse simplification: meshoptimizer's simplifier
-//! (Kapoulkine, `meshopt_simplifyWithAttributes`, meshoptimizer 1.3 through the `meshopt`
-//! crate), the simplifier of gltfpack.
-//!
-//! Collapses are ordered by a quadric error (Garland & Heckbert 1997: the squared distance
-//! to the planes of the original triangles around a vertex, plus edge quadrics on borders
-//! and seams, plus weighted attribute quadrics); the simplifier stops at a target
-//! triangle count or, first, before the error of the next collapse would pass
-//! `target_error`. Its reported error is the largest such error reached: a length in mesh
-//! units here (`meshopt_SimplifyErrorAbsolute`), an estimate of the distance from the
-//! original surface, not a bound on the Hausdorff distance.
-//!
-//! Collapses only merge a vertex into a neighbour: every output vertex is an input vertex,
-//! at its input position (unless `update_positions` moves it to where its quadric is
-//! least), so the output is returned as the indices of the kept input vertices and faces
-//! over them. Vertices that share a position but differ in index are an
-//! attribute seam (UV or normal discontinuity): the simplifier keeps the seam's shape and
-//! collapses along it only. A geometry-only mesh should therefore arrive welded.
+//! Error-bounded, attribute-aware edge-collapse simplification (see *Simplification* in
+//! the [module docs](super)).
 
 use glam::{DVec3, Vec3};
 
-use crate::adjacency::weld_identical;
 use crate::error::{MeshError, check_finite, check_indices};
 use crate::quantize::bounding_box;
+use crate::weld::weld_identical;
 
 /// Most attributes meshoptimizer weighs per vertex.
 pub const MAX_ATTRIBUTES: usize = 32;
@@ -84,6 +68,55 @@ pub fn simplify(
     faces: &[[u32; 3]],
     request: &Request<'_>,
 ) -> Result<Simplified, MeshError> {
+    let target_error = check_request(vertices, faces, request)?;
+    let welded: Vec<[u32; 3]>;
+    let faces = if request.weld {
+        welded = welded_faces(vertices, faces)?;
+        &welded[..]
+    } else {
+        faces
+    };
+    // The simplifier sees only the referenced vertices: an unreferenced copy of a position
+    // would read as an attribute seam there.
+    let used = compact(faces.as_flattened(), vertices.len(), 0.0);
+    let ids = &used.vertex_ids;
+    let (lo, hi) = bounding_box(vertices).unwrap_or(([0.0; 3], [0.0; 3]));
+    let centre = (DVec3::from_array(lo) + DVec3::from_array(hi)) * 0.5;
+    let mut input = SimplifierInput::gather(vertices, ids, centre, request);
+    let mut options = meshopt::SimplifyOptions::ErrorAbsolute;
+    if request.lock_border {
+        options |= meshopt::SimplifyOptions::LockBorder;
+    }
+    if request.prune {
+        options |= meshopt::SimplifyOptions::Prune;
+    }
+    let target_index_count = 3 * request.target_faces.unwrap_or(0).min(faces.len());
+    let (result, error) = input.run(
+        used.faces.as_flattened(),
+        target_index_count,
+        target_error,
+        options,
+        request.update_positions,
+    );
+    let mut out = compact(&result, input.positions.len(), f64::from(error));
+    if request.update_positions {
+        input.updated(&mut out, centre);
+    }
+    for id in &mut out.vertex_ids {
+        *id = ids[*id as usize];
+    }
+    Ok(out)
+}
+
+/// Refuses what the simplifier cannot take (no faces, non-finite coordinates, indices out
+/// of range, a lock flag or attribute row per vertex missing, too many attributes,
+/// negative or non-finite weights and values); returns the target error as the simplifier
+/// takes it (f32, `f32::MAX` for none).
+fn check_request(
+    vertices: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    request: &Request<'_>,
+) -> Result<f32, MeshError> {
     if faces.is_empty() {
         return Err(MeshError::Empty("the mesh has no faces to simplify".into()));
     }
@@ -99,172 +132,201 @@ pub fn simplify(
         )));
     }
     if let Some(a) = request.attributes {
-        let k = a.weights.len();
-        if k > MAX_ATTRIBUTES {
-            return Err(MeshError::Parameter(format!(
-                "at most {MAX_ATTRIBUTES} attributes per vertex, got {k}"
-            )));
-        }
-        if a.values.len() != n * k {
-            return Err(MeshError::Parameter(format!(
-                "attributes hold {} values for {n} vertices of {k} attributes",
-                a.values.len()
-            )));
-        }
-        if let Some(w) = a.weights.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
-            return Err(MeshError::Parameter(format!(
-                "attribute weight {w} is {}: weights must be finite and >= 0",
-                a.weights[w]
-            )));
-        }
-        if let Some(i) = a.values.iter().position(|v| !v.is_finite()) {
-            return Err(MeshError::Parameter(format!(
-                "the attributes of vertex {} are not finite",
-                i / k.max(1)
-            )));
-        }
+        check_attributes(a, n)?;
     }
-    let target_error = match request.target_error {
-        None => f32::MAX,
-        Some(e) if e.is_finite() && e >= 0.0 => (e as f32).min(f32::MAX),
-        Some(e) => {
-            return Err(MeshError::Parameter(format!(
-                "target error must be finite and >= 0, got {e}"
-            )));
-        }
-    };
-    let welded: Vec<[u32; 3]>;
-    let faces = if request.weld {
-        let canonical = weld_identical(vertices).canonical;
-        welded = faces
-            .iter()
-            .map(|t| t.map(|i| canonical[i as usize]))
-            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0])
-            .collect();
-        if welded.is_empty() {
-            return Err(MeshError::Empty(
-                "every face repeats a vertex once identical vertices are merged".into(),
-            ));
-        }
-        &welded[..]
-    } else {
-        faces
-    };
-    // The simplifier sees only the referenced vertices: an unreferenced copy of a position
-    // would read as an attribute seam there.
-    let used = compact(faces.as_flattened(), n, 0.0);
-    let ids = &used.vertex_ids;
-    let (lo, hi) = bounding_box(vertices).unwrap_or(([0.0; 3], [0.0; 3]));
-    let centre = (DVec3::from_array(lo) + DVec3::from_array(hi)) * 0.5;
-    let positions: Vec<[f32; 3]> = ids
+    match request.target_error {
+        None => Ok(f32::MAX),
+        Some(e) if e.is_finite() && e >= 0.0 => Ok((e as f32).min(f32::MAX)),
+        Some(e) => Err(MeshError::Parameter(format!(
+            "target error must be finite and >= 0, got {e}"
+        ))),
+    }
+}
+
+/// Refuses attributes that are not `weights.len() <= MAX_ATTRIBUTES` finite values per
+/// vertex of `n`, or whose weights are negative or not finite.
+fn check_attributes(a: Attributes<'_>, n: usize) -> Result<(), MeshError> {
+    let k = a.weights.len();
+    if k > MAX_ATTRIBUTES {
+        return Err(MeshError::Parameter(format!(
+            "at most {MAX_ATTRIBUTES} attributes per vertex, got {k}"
+        )));
+    }
+    if a.values.len() != n * k {
+        return Err(MeshError::Parameter(format!(
+            "attributes hold {} values for {n} vertices of {k} attributes",
+            a.values.len()
+        )));
+    }
+    if let Some(w) = a.weights.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
+        return Err(MeshError::Parameter(format!(
+            "attribute weight {w} is {}: weights must be finite and >= 0",
+            a.weights[w]
+        )));
+    }
+    if let Some(i) = a.values.iter().position(|v| !v.is_finite()) {
+        return Err(MeshError::Parameter(format!(
+            "the attributes of vertex {} are not finite",
+            i / k.max(1)
+        )));
+    }
+    Ok(())
+}
+
+/// `faces` with identical vertices merged ([`weld_identical`]) and the faces that then
+/// repeat a vertex dropped; refuses a mesh left with none.
+fn welded_faces(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Result<Vec<[u32; 3]>, MeshError> {
+    let weld = weld_identical(vertices);
+    let welded: Vec<[u32; 3]> = faces
         .iter()
-        .map(|&i| {
-            (DVec3::from_array(vertices[i as usize]) - centre)
-                .as_vec3()
-                .to_array()
-        })
+        .map(|t| weld.face(t))
+        .filter(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0])
         .collect();
-    let locks: Vec<u8> = match request.locked {
-        Some(locked) => ids.iter().map(|&i| u8::from(locked[i as usize])).collect(),
-        None => vec![0; ids.len()],
-    };
-    let (values, weights): (Vec<f32>, &[f32]) = match request.attributes {
-        Some(a) if !a.weights.is_empty() => {
-            let k = a.weights.len();
-            let gathered = ids
-                .iter()
-                .flat_map(|&i| &a.values[i as usize * k..(i as usize + 1) * k])
-                .copied()
-                .collect();
-            (gathered, a.weights)
+    if welded.is_empty() {
+        return Err(MeshError::Empty(
+            "every face repeats a vertex once identical vertices are merged".into(),
+        ));
+    }
+    Ok(welded)
+}
+
+/// What the simplifier reads (and, with `update_positions`, rewrites) per referenced
+/// vertex: f32 positions relative to the centre, lock flags, and attribute values with
+/// their weights.
+struct SimplifierInput<'a> {
+    positions: Vec<[f32; 3]>,
+    locks: Vec<u8>,
+    values: Vec<f32>,
+    weights: &'a [f32],
+}
+
+impl<'a> SimplifierInput<'a> {
+    /// The inputs of the vertices `ids` (the referenced ones, in order).
+    fn gather(
+        vertices: &[[f64; 3]],
+        ids: &[u32],
+        centre: DVec3,
+        request: &Request<'a>,
+    ) -> SimplifierInput<'a> {
+        let positions: Vec<[f32; 3]> = ids
+            .iter()
+            .map(|&i| {
+                (DVec3::from_array(vertices[i as usize]) - centre)
+                    .as_vec3()
+                    .to_array()
+            })
+            .collect();
+        let locks: Vec<u8> = match request.locked {
+            Some(locked) => ids.iter().map(|&i| u8::from(locked[i as usize])).collect(),
+            None => vec![0; ids.len()],
+        };
+        let (values, weights): (Vec<f32>, &[f32]) = match request.attributes {
+            Some(a) if !a.weights.is_empty() => {
+                let k = a.weights.len();
+                let gathered = ids
+                    .iter()
+                    .flat_map(|&i| &a.values[i as usize * k..(i as usize + 1) * k])
+                    .copied()
+                    .collect();
+                (gathered, a.weights)
+            }
+            _ => (Vec::new(), &[]),
+        };
+        SimplifierInput {
+            positions,
+            locks,
+            values,
+            weights,
         }
-        _ => (Vec::new(), &[]),
-    };
-    let stride = 4 * weights.len();
-    let mut options = meshopt::SimplifyOptions::ErrorAbsolute;
-    if request.lock_border {
-        options |= meshopt::SimplifyOptions::LockBorder;
     }
-    if request.prune {
-        options |= meshopt::SimplifyOptions::Prune;
-    }
-    let target_index_count = 3 * request.target_faces.unwrap_or(0).min(faces.len());
-    let indices = used.faces.as_flattened();
-    let mut result = vec![0u32; indices.len()];
-    let mut error = 0.0f32;
-    // SAFETY: every precondition of meshopt_simplifyWithAttributes holds: indices are
-    // below `positions.len()` (compacted) and a multiple of 3; the position stride is 12
-    // bytes; the target is at most the index count and the error is finite and >= 0;
-    // `values` holds `weights.len()` floats per vertex at 4 bytes per float (at most 32
-    // floats, 128 bytes); weights are >= 0; `locks` has one byte per vertex; `result` has
-    // room for every input index.
-    let mut positions = positions;
-    let mut values = values;
-    let values_ptr = |values: &mut Vec<f32>| {
-        if stride > 0 {
-            values.as_mut_ptr()
+
+    /// Runs `meshopt_simplifyWithAttributes` on `indices` (over the gathered vertices), or
+    /// with `update` `meshopt_simplifyWithUpdate`, which also moves the positions and
+    /// values in place; returns the kept indices and the error reached (length).
+    fn run(
+        &mut self,
+        indices: &[u32],
+        target_index_count: usize,
+        target_error: f32,
+        options: meshopt::SimplifyOptions,
+        update: bool,
+    ) -> (Vec<u32>, f32) {
+        let stride = 4 * self.weights.len();
+        let mut result = vec![0u32; indices.len()];
+        let mut error = 0.0f32;
+        // SAFETY: every precondition of meshopt_simplifyWithAttributes holds: indices are
+        // below `positions.len()` (compacted) and a multiple of 3; the position stride is
+        // 12 bytes; the target is at most the index count and the error is finite and
+        // >= 0; `values` holds `weights.len()` floats per vertex at 4 bytes per float (at
+        // most 32 floats, 128 bytes); weights are >= 0; `locks` has one byte per vertex;
+        // `result` has room for every input index.
+        let values_ptr = if stride > 0 {
+            self.values.as_mut_ptr()
         } else {
             std::ptr::null_mut()
-        }
-    };
-    let weights_ptr = if stride > 0 {
-        weights.as_ptr()
-    } else {
-        std::ptr::null()
-    };
-    let kept = if request.update_positions {
-        result.copy_from_slice(indices);
-        // SAFETY: as for meshopt_simplifyWithAttributes below; the positions and values
-        // it updates in place are this function's own copies.
-        unsafe {
-            meshopt::ffi::meshopt_simplifyWithUpdate(
-                result.as_mut_ptr(),
-                result.len(),
-                positions.as_mut_ptr().cast(),
-                positions.len(),
-                12,
-                values_ptr(&mut values),
-                stride,
-                weights_ptr,
-                weights.len(),
-                locks.as_ptr(),
-                target_index_count,
-                target_error,
-                options.bits(),
-                &mut error,
-            )
-        }
-    } else {
-        // SAFETY: see above.
-        unsafe {
-            meshopt::ffi::meshopt_simplifyWithAttributes(
-                result.as_mut_ptr(),
-                indices.as_ptr(),
-                indices.len(),
-                positions.as_ptr().cast(),
-                positions.len(),
-                12,
-                values_ptr(&mut values),
-                stride,
-                weights_ptr,
-                weights.len(),
-                locks.as_ptr(),
-                target_index_count,
-                target_error,
-                options.bits(),
-                &mut error,
-            )
-        }
-    };
-    result.truncate(kept);
-    let mut out = compact(&result, positions.len(), f64::from(error));
-    if request.update_positions {
-        let k = weights.len();
+        };
+        let weights_ptr = if stride > 0 {
+            self.weights.as_ptr()
+        } else {
+            std::ptr::null()
+        };
+        let kept = if update {
+            result.copy_from_slice(indices);
+            // SAFETY: as for meshopt_simplifyWithAttributes below; the positions and
+            // values it updates in place are this input's own copies.
+            unsafe {
+                meshopt::ffi::meshopt_simplifyWithUpdate(
+                    result.as_mut_ptr(),
+                    result.len(),
+                    self.positions.as_mut_ptr().cast(),
+                    self.positions.len(),
+                    12,
+                    values_ptr,
+                    stride,
+                    weights_ptr,
+                    self.weights.len(),
+                    self.locks.as_ptr(),
+                    target_index_count,
+                    target_error,
+                    options.bits(),
+                    &mut error,
+                )
+            }
+        } else {
+            // SAFETY: see above.
+            unsafe {
+                meshopt::ffi::meshopt_simplifyWithAttributes(
+                    result.as_mut_ptr(),
+                    indices.as_ptr(),
+                    indices.len(),
+                    self.positions.as_ptr().cast(),
+                    self.positions.len(),
+                    12,
+                    values_ptr,
+                    stride,
+                    weights_ptr,
+                    self.weights.len(),
+                    self.locks.as_ptr(),
+                    target_index_count,
+                    target_error,
+                    options.bits(),
+                    &mut error,
+                )
+            }
+        };
+        result.truncate(kept);
+        (result, error)
+    }
+
+    /// The moved positions (back in the caller's frame, `+ centre`) and attribute values
+    /// of the vertices `out` kept, after [`run`](Self::run) with `update`.
+    fn updated(&self, out: &mut Simplified, centre: DVec3) {
+        let k = self.weights.len();
         out.positions = Some(
             out.vertex_ids
                 .iter()
                 .map(|&i| {
-                    (DVec3::from(Vec3::from_array(positions[i as usize])) + centre).to_array()
+                    (DVec3::from(Vec3::from_array(self.positions[i as usize])) + centre).to_array()
                 })
                 .collect(),
         );
@@ -272,16 +334,12 @@ pub fn simplify(
             out.attributes = Some(
                 out.vertex_ids
                     .iter()
-                    .flat_map(|&i| &values[i as usize * k..(i as usize + 1) * k])
+                    .flat_map(|&i| &self.values[i as usize * k..(i as usize + 1) * k])
                     .copied()
                     .collect(),
             );
         }
     }
-    for id in &mut out.vertex_ids {
-        *id = ids[*id as usize];
-    }
-    Ok(out)
 }
 
 /// The kept vertices of an index list over `n` vertices, and its faces over them.
