@@ -44,8 +44,7 @@ from typing import Any
 
 from . import _core
 from .errors import MeshbitsError
-from .gltf import asset_bytes, external_files
-from .io import write_atomic
+from .files import asset_bytes, external_files, write_atomic
 from .results import json_ready
 from .units import in_unit, length_unit_of
 

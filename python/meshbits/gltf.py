@@ -33,8 +33,6 @@ __all__ = [
     "MESHOPT_EXTENSIONS",
     "Document",
     "PrimitiveData",
-    "asset_bytes",
-    "external_files",
     "image_size",
     "load_document",
     "load_gltf_document",
@@ -602,81 +600,6 @@ def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
         return tri
     i = np.arange(1, len(indices) - 1)
     return np.stack([np.full(len(i), indices[0]), indices[i], indices[i + 1]], axis=1)
-
-
-#: MTL statements naming a texture file (its last word; options come before it).
-_MTL_MAPS = (
-    b"map_",
-    b"bump",
-    b"disp",
-    b"decal",
-    b"refl",
-    b"norm",
-)
-
-
-def _obj_files(path: Path) -> list[tuple[str, Path]]:
-    """The material libraries an OBJ names (``mtllib``) and the textures those that exist
-    name, as ``(name, path)``."""
-    out: list[tuple[str, Path]] = []
-    try:
-        with path.open("rb") as lines:
-            libraries = [
-                name
-                for line in lines
-                if line.startswith(b"mtllib")
-                for name in line[6:].decode("utf-8", "replace").split()
-            ]
-    except OSError:
-        return []
-    for name in libraries:
-        library = path.parent / name
-        out.append((name, library))
-        try:
-            text = library.read_bytes().splitlines()
-        except OSError:
-            continue
-        for line in text:
-            words = line.strip().split()
-            if len(words) >= 2 and words[0].lower().startswith(_MTL_MAPS):
-                texture = words[-1].decode("utf-8", "replace")
-                out.append((texture, library.parent / texture))
-    return out
-
-
-def external_files(path: str | Path) -> list[tuple[str, Path]]:
-    """The files a ``.gltf`` names by relative URI (its buffers, then its images), or an
-    OBJ (its material libraries and their textures), as ``(name, path)``, whether they
-    exist or not; none for any other file, or for one that cannot be read as JSON (its
-    reader says why when it is loaded)."""
-    path = Path(path)
-    if path.suffix.lower() == ".obj":
-        return _obj_files(path)
-    if path.suffix.lower() != ".gltf":
-        return []
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-        uris = [
-            item.get("uri")
-            for key in ("buffers", "images")
-            for item in document.get(key, [])
-            if isinstance(item, dict)
-        ]
-    except (OSError, ValueError, AttributeError, TypeError):
-        return []
-    return [
-        (uri, path.parent / _unquote(uri))
-        for uri in uris
-        if isinstance(uri, str) and uri and not uri.startswith("data:") and "://" not in uri
-    ]
-
-
-def asset_bytes(path: str | Path) -> int:
-    """A file's bytes; for a ``.gltf``, with the buffers and images it names by relative
-    URI, for an OBJ with its material libraries and textures (the asset's whole size)."""
-    path = Path(path)
-    parts = {part.resolve() for _, part in external_files(path) if part.is_file()}
-    return path.stat().st_size + sum(part.stat().st_size for part in parts)
 
 
 def _unquote(uri: str) -> str:

@@ -18,7 +18,6 @@ import json
 import logging
 import mmap
 import os
-import tempfile
 import warnings
 import zlib
 from importlib import resources
@@ -29,17 +28,15 @@ import numpy as np
 
 from ._filecheck import check_structure, explain
 from .errors import MeshbitsError, MeshFileError
+from .files import write_atomic
 from .mesh import as_mesh
 
 __all__ = [
     "GZIP_MAX_RATIO",
     "GZIP_MIN_LIMIT",
-    "check_not_an_input",
-    "check_writable",
     "example_mesh_path",
     "load_mesh",
     "save_mesh",
-    "write_atomic",
 ]
 
 #: A ``.gz`` mesh may inflate to at most this many times its compressed size (meshes
@@ -226,79 +223,6 @@ def _gunzip(path: Path) -> _io.BytesIO:
         raise MeshFileError("the gzip data is truncated") from None
     out.seek(0)
     return out
-
-
-def check_not_an_input(path: str | Path, *inputs: str | Path | None) -> Path:
-    """Refuse an output that would replace an input: ``path`` itself or, for a ``.gltf``
-    output, the buffer file written beside it (``out.bin``), when it is one of
-    ``inputs`` or a file a ``.gltf`` input names (its buffers and images); the same file
-    by any path (a symlink, a hard link) counts."""
-    from .gltf import external_files
-
-    path = Path(path)
-    written = [path]
-    if path.suffix.lower() == ".gltf":
-        written.append(path.with_name(f"{path.stem}.bin"))
-    for given in inputs:
-        if given is None:
-            continue
-        given = Path(given)
-        for read in [given, *(part for _, part in external_files(given))]:
-            for target in written:
-                if _same_file(target, read):
-                    what = "" if read == given else f" (a file {given} refers to)"
-                    raise MeshbitsError(
-                        f"cannot write {target}: it is the input {read}{what}; write the "
-                        "output elsewhere"
-                    )
-    return path
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    """Whether two paths name the same file (the same inode when both exist)."""
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return a.resolve() == b.resolve()
-
-
-def check_writable(path: str | Path) -> Path:
-    """Refuse an output path whose folder does not exist or cannot be written, or that
-    names a folder, before any work is done."""
-    path = Path(path)
-    folder = path.parent
-    if not folder.is_dir():
-        raise MeshbitsError(f"cannot write {path}: the folder {folder} does not exist")
-    if path.is_dir():
-        raise MeshbitsError(f"cannot write {path}: it is a folder")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise MeshbitsError(f"cannot write {path}: the folder {folder} is not writable")
-    return path
-
-
-def _default_mode() -> int:
-    """0666 minus the process's umask: the mode ``open(path, "w")`` gives a new file."""
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
-def write_atomic(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder, renamed
-    into place: a failure leaves neither a partial file nor a damaged earlier one."""
-    path = Path(path)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(handle, "wb") as out:
-            out.write(data)
-        # mkstemp makes the file private (0600): give it the mode a plain write would,
-        # or the one of the file it replaces.
-        os.chmod(temporary, path.stat().st_mode & 0o7777 if path.exists() else _default_mode())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def _gltf_files(mesh: object, path: Path) -> dict[str, bytes]:

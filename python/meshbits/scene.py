@@ -38,13 +38,13 @@ from .constants import (
 )
 from .encode import draco_encode, draco_max_bits, draco_quantization
 from .errors import MeshbitsError, MeshFileError
+from .files import asset_bytes, check_not_an_input, write_atomic
 from .gltf import (
     COMPONENT_TYPES,
     MESHOPT_EXTENSIONS,
     WIDTH_TYPES,
     Document,
     PrimitiveData,
-    asset_bytes,
     finite_or_fail,
     frame_centre,
     image_size,
@@ -52,7 +52,6 @@ from .gltf import (
     load_document,
 )
 from .hausdorff import Reference, default_samples
-from .io import check_not_an_input, write_atomic
 from .mesh import distinct_positions, draco_drops_note, kept_shape, lost_geometry_note
 from .quantize import cube_grid, precision_bits
 from .results import SAMPLED_ONLY, Progress, ProgressCallback
