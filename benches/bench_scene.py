@@ -32,7 +32,7 @@ import numpy as np
 import trimesh
 from _shared import SHARED, import_refs
 
-from meshbits.gltf import load_document
+from meshbits.formats import load_document
 from meshbits.scene import compress_scene
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -221,7 +221,7 @@ def test_text_and_stl_outputs_hold_the_decoded_positions_exactly(tmp_path, bunny
     vertices, faces = bunny
     for scale, offset in ((1e-7, 0.0), (1.0, 3e5)):
         result = meshbits.compress((vertices * scale + offset, faces), error=0.01, relative=True)
-        path = meshbits.io.save_mesh(tmp_path / f"out{suffix}", result.vertices, result.faces)
+        path = meshbits.save_mesh(tmp_path / f"out{suffix}", result.vertices, result.faces)
         written, _ = read_output(path)
         # Every written position is a decoded one, exactly (an STL's corners come back
         # once per face).

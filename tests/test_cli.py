@@ -190,7 +190,7 @@ def test_an_error_with_a_unit_on_a_file_without_units_says_how_it_is_read(tmp_pa
 def test_a_certification_that_fails_is_said(capsys):
     """spot at 0.002 S: its best sampled pass is over the budget by its certified bound;
     the pass line was left saying it met."""
-    from meshbits.io import example_mesh_path
+    from meshbits.formats import example_mesh_path
 
     assert main(["compress", str(example_mesh_path()), "--error", "0.002", "--relative"]) == 0
     err = capsys.readouterr().err
@@ -460,7 +460,7 @@ def test_info_and_a_batch_folder_read_a_draco_file(tmp_path, capsys):
     """``info out.drc`` said trimesh does not support 'drc', and a batch over a folder
     holding only .drc files found no mesh files."""
     from meshbits.encode import encode_draco
-    from meshbits.io import example_mesh_path, load_mesh
+    from meshbits.formats import example_mesh_path, load_mesh
 
     spot = load_mesh(example_mesh_path())
     folder = tmp_path / "drc"
@@ -478,7 +478,7 @@ def test_json_reports_name_the_unit_of_their_lengths(tmp_path, capsys):
     the file's own units otherwise, in every command that reports lengths."""
     import trimesh
 
-    from meshbits.io import example_mesh_path, load_mesh
+    from meshbits.formats import example_mesh_path, load_mesh
 
     bunny = str(DATA / "bunny.ply")
     spot = load_mesh(example_mesh_path())

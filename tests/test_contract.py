@@ -17,7 +17,7 @@ import meshbits
 from meshbits import cli
 from meshbits.cli import main
 from meshbits.encode import encode_draco
-from meshbits.io import write_atomic
+from meshbits.files import write_atomic
 
 DATA = Path(__file__).parent / "data"
 BUNNY = str(DATA / "bunny.ply")

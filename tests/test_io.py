@@ -20,8 +20,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import meshbits
-from meshbits import io as meshbits_io
 from meshbits.errors import MeshFileError
+from meshbits.formats import sniff
 
 VERTICES = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
 FACES = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
@@ -160,7 +160,7 @@ def test_a_binary_ply_list_longer_than_the_first_is_refused(tmp_path):
 
 def test_a_gzip_bomb_is_refused_before_it_inflates(tmp_path, monkeypatch):
     """A 1 MB .ply.gz of zeros inflating to 1 GiB peaked at 5.2 GB of memory."""
-    monkeypatch.setattr(meshbits_io, "GZIP_MIN_LIMIT", 1 << 20)
+    monkeypatch.setattr(sniff, "GZIP_MIN_LIMIT", 1 << 20)
     compressor = zlib.compressobj(9, zlib.DEFLATED, 31)
     data = compressor.compress(ply("binary_little_endian"))
     data += compressor.compress(bytes(8 << 20)) + compressor.flush()
@@ -424,7 +424,7 @@ def test_a_gltf_with_any_broken_reference_is_refused_in_words(tmp_path, edits):
     type), reading it (and compressing it as a scene) gives a result or a MeshbitsError:
     never a KeyError, IndexError, TypeError or a reader's internal error (what a new
     user's hand-made files got)."""
-    from meshbits.gltf import load_document
+    from meshbits.formats import load_document
     from meshbits.scene import scene_info
 
     document = _rich_gltf()
@@ -452,7 +452,7 @@ def test_a_gltf_with_any_broken_reference_is_refused_in_words(tmp_path, edits):
 
 def test_the_rich_gltf_document_reads_whole(tmp_path):
     """The property test above starts from a valid document: every reader takes it."""
-    from meshbits.gltf import load_document
+    from meshbits.formats import load_document
     from meshbits.scene import scene_info
 
     file = tmp_path / "rich.gltf"

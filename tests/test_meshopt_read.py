@@ -23,8 +23,7 @@ from hypothesis import strategies as st
 import meshbits
 from meshbits import _core, scene
 from meshbits.cli import main
-from meshbits.gltf import load_document
-from meshbits.io import example_mesh_path
+from meshbits.formats import example_mesh_path, load_document
 
 meshopt = pytest.importorskip("meshopt")
 

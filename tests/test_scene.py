@@ -17,7 +17,7 @@ from independent import decode_primitive, read_glb, world_matrices
 
 import meshbits
 from meshbits.cli import main
-from meshbits.gltf import load_document
+from meshbits.formats import load_document
 from meshbits.scene import compress_scene, normal_bits, uv_bits
 
 DATA = Path(__file__).parent / "data"

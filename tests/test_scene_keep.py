@@ -245,7 +245,7 @@ def test_an_objs_material_library_and_textures_count_in_its_bytes_and_digest(tmp
     folder.mkdir()
     obj = textured_obj(folder, 8, 16, 8)
     whole = sum(p.stat().st_size for p in folder.iterdir())
-    assert meshbits.gltf.asset_bytes(obj) == whole
+    assert meshbits.files.asset_bytes(obj) == whole
     before = batch_module.input_digest(obj)
     (folder / "checker.png").write_bytes((folder / "checker.png").read_bytes() + b"\0")
     assert batch_module.input_digest(obj) != before

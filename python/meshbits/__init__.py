@@ -12,6 +12,7 @@ from ._core import MeshbitsError
 from .batch import BatchInterrupted, BatchResult, BatchRow, batch
 from .complexity import ShapeComplexity, shape_complexity
 from .compress import CompressResult, Iteration, compress
+from .formats import example_mesh_path, load_mesh, save_mesh
 from .hausdorff import (
     Closest,
     ClosestPoints,
@@ -22,7 +23,6 @@ from .hausdorff import (
     hausdorff,
     surface_samples,
 )
-from .io import example_mesh_path, load_mesh, save_mesh
 from .model import (
     Allocation,
     guaranteed_bits,

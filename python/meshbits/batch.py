@@ -44,8 +44,8 @@ from typing import Any
 
 from . import _core
 from .errors import MeshbitsError
-from .gltf import asset_bytes, external_files
-from .io import write_atomic
+from .files import asset_bytes, external_files, write_atomic
+from .formats import load_mesh
 from .results import json_ready
 from .units import in_unit, length_unit_of
 
@@ -620,7 +620,6 @@ def _run_task(task: _Task) -> dict[str, Any]:
     failure is caught and recorded: a refused input or file-system error as
     ``"unusable"``, anything else as ``"internal_error"`` with the traceback."""
     from .compress import compress
-    from .io import load_mesh
     from .scene import compress_scene, merged_away
 
     _set_threads(task.threads)

@@ -51,8 +51,9 @@ from .constants import (
 )
 from .encode import fixed_width_size_bits
 from .errors import MeshbitsError
+from .files import check_not_an_input, check_writable
+from .formats import example_mesh_path, load_mesh, save_mesh
 from .hausdorff import hausdorff
-from .io import check_not_an_input, check_writable, example_mesh_path, load_mesh, save_mesh
 from .model import METHODS, plan_for_error, plan_for_size, plan_for_vertices
 from .quantize import cluster
 from .results import Progress, json_ready

@@ -37,8 +37,8 @@ from .constants import (
 )
 from .encode import draco_max_bits
 from .errors import MeshbitsError
+from .files import write_atomic
 from .hausdorff import Reference, default_samples
-from .io import write_atomic
 from .mesh import (
     MeshLike,
     as_mesh,
@@ -163,7 +163,7 @@ class CompressResult(ArrayResult):
         return distinct_positions(self.vertices)
 
     def write(self, path: str | Path) -> Path:
-        """Write the encoded bytes atomically (see :func:`meshbits.io.write_atomic`)."""
+        """Write the encoded bytes atomically (see :func:`meshbits.files.write_atomic`)."""
         return write_atomic(Path(path), self.data)
 
     def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:

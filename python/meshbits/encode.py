@@ -23,7 +23,7 @@ import numpy as np
 
 from .constants import FORMAT_MAX_BITS
 from .errors import MeshbitsError, MeshFileError
-from .io import write_atomic
+from .files import write_atomic
 from .mesh import MeshLike, all_faces_degenerate, as_mesh, compact
 from .quantize import cube_grid, quantize
 from .results import ArrayResult
@@ -98,7 +98,7 @@ class Encoded(ArrayResult):
         return out
 
     def write(self, path: str | Path) -> Path:
-        """Write the file's bytes atomically (see :func:`meshbits.io.write_atomic`)."""
+        """Write the file's bytes atomically (see :func:`meshbits.files.write_atomic`)."""
         return write_atomic(Path(path), self.data)
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from . import model
 from .constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, MODEL_MIN_VERTICES
 from .errors import MeshbitsError
-from .io import write_atomic
+from .files import write_atomic
 from .mesh import MeshLike, as_mesh
 from .results import ArrayResult
 

@@ -38,21 +38,14 @@ from .constants import (
 )
 from .encode import draco_encode, draco_max_bits, draco_quantization
 from .errors import MeshbitsError, MeshFileError
-from .gltf import (
-    COMPONENT_TYPES,
-    MESHOPT_EXTENSIONS,
-    WIDTH_TYPES,
-    Document,
-    PrimitiveData,
-    asset_bytes,
-    finite_or_fail,
-    frame_centre,
-    image_size,
-    largest_scale,
-    load_document,
-)
+from .files import asset_bytes, check_not_an_input, write_atomic
+from .formats.gltf.document import Document, PrimitiveData, largest_scale
+from .formats.gltf.spec import COMPONENT_DTYPES, COMPONENT_TYPES, MESHOPT_EXTENSIONS, WIDTH_TYPES
+from .formats.gltf.validate import finite_or_fail
+from .formats.gltf.write import frame_centre
+from .formats.open import load_document
+from .formats.sniff import image_size
 from .hausdorff import Reference, default_samples
-from .io import check_not_an_input, write_atomic
 from .mesh import distinct_positions, draco_drops_note, kept_shape, lost_geometry_note
 from .quantize import cube_grid, precision_bits
 from .results import SAMPLED_ONLY, Progress, ProgressCallback
@@ -951,7 +944,7 @@ def compress_scene(
     ----------
     source
         A ``.glb`` / ``.gltf`` file, an OBJ (with MTL and textures), a PLY (with colours),
-        or any mesh trimesh reads; or a :class:`meshbits.gltf.Document`.
+        or any mesh trimesh reads; or a :class:`meshbits.formats.Document`.
     error
         World-space error budget: the Hausdorff distance of every primitive, scaled by the
         largest scale of the nodes that instance it, in world units (or with ``relative``, as
@@ -985,7 +978,7 @@ def compress_scene(
         check_not_an_input(output, source)
     if not isinstance(source, (str, Path, Document)):
         raise TypeError(
-            f"compress_scene takes a file path or a meshbits.gltf.Document, got "
+            f"compress_scene takes a file path or a meshbits.formats.Document, got "
             f"{type(source).__name__}: for a mesh in memory use meshbits.compress, or export "
             "the scene to a .glb first"
         )
@@ -1555,8 +1548,8 @@ def _place_in_frames(jobs: list[_Job], kept: list[PrimitiveData], document: Docu
     """Group the jobs into clusters of meshes that must share frames (a job shared by
     several meshes joins them), mark the clusters whose meshes can take a frame of their
     own from the nodes that show them (``_Job.framed``), and move those far from the
-    origin to their centre (:func:`meshbits.gltf.frame_centre`; ``_Job.offset``), so that
-    their float32 and quantized positions keep their precision."""
+    origin to their centre (:func:`meshbits.formats.gltf.write.frame_centre`;
+    ``_Job.offset``), so that their float32 and quantized positions keep their precision."""
     parent: dict[int, int] = {}
 
     def root(mesh: int) -> int:
@@ -2255,6 +2248,4 @@ def _json_bytes(path: Path, document_json: dict) -> int:
 
 
 def _dtype_name(component: int) -> Any:
-    from .gltf import COMPONENT_DTYPES
-
     return COMPONENT_DTYPES[component]

@@ -1,0 +1,22 @@
+"""File formats: mesh and scene files in and out, as arrays or glTF documents.
+
+:mod:`.open` is the dispatcher (:func:`load_mesh`, :func:`load_document`,
+:func:`save_mesh`); each format has its own module (:mod:`.ply`, :mod:`.obj` for OBJ and
+OFF, :mod:`.stl`, :mod:`.drc`, :mod:`.gltf`), and :mod:`.sniff` holds what they share
+before a parser reads a file. Formats import leaves (errors, files, mesh, the codecs),
+never the dispatcher.
+"""
+
+from __future__ import annotations
+
+from .gltf import Document, PrimitiveData
+from .open import example_mesh_path, load_document, load_mesh, save_mesh
+
+__all__ = [
+    "Document",
+    "PrimitiveData",
+    "example_mesh_path",
+    "load_document",
+    "load_mesh",
+    "save_mesh",
+]
