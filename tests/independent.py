@@ -89,10 +89,11 @@ def decode_primitive(doc: dict, blob: bytes, prim: dict) -> dict[str, np.ndarray
         out["indices"] = np.asarray(mesh.faces).reshape(-1, 3)
         return out
     out = {name: accessor(doc, blob, i) for name, i in prim["attributes"].items()}
+    shape = (-1, 3) if prim.get("mode", 4) == 4 else (-1,)
     if prim.get("indices") is not None:
-        out["indices"] = accessor(doc, blob, prim["indices"]).reshape(-1, 3)
+        out["indices"] = accessor(doc, blob, prim["indices"]).reshape(shape)
     else:
-        out["indices"] = np.arange(len(out["POSITION"])).reshape(-1, 3)
+        out["indices"] = np.arange(len(out["POSITION"])).reshape(shape)
     return out
 
 
@@ -144,6 +145,19 @@ def world_matrices(doc: dict) -> dict[int, list[np.ndarray]]:
     return out
 
 
+def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
+    """The triangles of a list (4), strip (5) or fan (6) of vertex indices, as the glTF
+    specification (3.7.2.1) defines them."""
+    if mode == 4:
+        return indices.reshape(-1, 3)
+    i = np.arange(len(indices) - 2)
+    if mode == 5:
+        odd = i % 2 == 1
+        a, b = np.where(odd, i + 1, i), np.where(odd, i, i + 1)
+        return np.stack([indices[a], indices[b], indices[i + 2]], axis=1)
+    return np.stack([np.full(len(i), indices[0]), indices[i + 1], indices[i + 2]], axis=1)
+
+
 def gltf_world_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Every triangle primitive of a .glb/.gltf at each node showing it, in world
     coordinates composed in float64: one mesh."""
@@ -151,13 +165,18 @@ def gltf_world_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     vertices, faces, offset = [], [], 0
     for mesh, matrices in world_matrices(doc).items():
         for prim in doc["meshes"][mesh]["primitives"]:
-            if prim.get("mode", 4) != 4:
+            mode = prim.get("mode", 4)
+            if mode not in (4, 5, 6):
                 continue
+            used = [prim["attributes"]["POSITION"], prim.get("indices")]
+            if any(i is not None and "sparse" in doc["accessors"][i] for i in used):
+                raise NotImplementedError("sparse accessors are not read here")
             data = decode_primitive(doc, blob, prim)
             local = np.asarray(data["POSITION"], dtype=np.float64)
+            triangles = _triangles(np.asarray(data["indices"], dtype=np.int64).reshape(-1), mode)
             for matrix in matrices:
                 vertices.append(local @ matrix[:3, :3].T + matrix[:3, 3])
-                faces.append(np.asarray(data["indices"], dtype=np.int64) + offset)
+                faces.append(triangles + offset)
                 offset += len(local)
     return np.concatenate(vertices), np.concatenate(faces)
 

@@ -284,3 +284,15 @@ def test_the_reported_vertex_count_never_exceeds_the_inputs():
     assert result.vertex_count <= len(vertices)
     assert result.to_dict()["vertices"] == result.vertex_count
     assert result.iterations[-1].vertices <= len(vertices)
+
+
+def test_a_texture_whose_name_has_a_space_counts_in_the_objs_bytes(tmp_path):
+    """trimesh's fuze.obj names ``map_Kd fuze uv.jpg``: its 88 kB texture was left out of
+    the input's bytes, and the output looked larger than the input."""
+    (tmp_path / "a.obj").write_text("mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "a.mtl").write_text("newmtl m\nmap_Kd -bm 1 fuze uv.jpg\n")
+    (tmp_path / "fuze uv.jpg").write_bytes(b"\xff\xd8" + b"\0" * 1000)
+    names = [name for name, _ in meshbits.files.external_files(tmp_path / "a.obj")]
+    assert names == ["a.mtl", "fuze uv.jpg"]
+    whole = sum(p.stat().st_size for p in tmp_path.iterdir())
+    assert meshbits.files.asset_bytes(tmp_path / "a.obj") == whole

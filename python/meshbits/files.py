@@ -62,9 +62,16 @@ def _obj_files(path: Path) -> list[tuple[str, Path]]:
         for line in text:
             words = line.strip().split()
             if len(words) >= 2 and words[0].lower().startswith(MTL_MAPS):
-                texture = words[-1].decode("utf-8", "replace")
+                texture = _texture_name(words[1:], library.parent)
                 out.append((texture, library.parent / texture))
     return out
+
+
+def _texture_name(words: list[bytes], folder: Path) -> str:
+    """The file an MTL map statement names: its last word, or its last words joined by
+    spaces when those name a file there (``map_Kd fuze uv.jpg``; options come first)."""
+    names = [b" ".join(words[-k:]).decode("utf-8", "replace") for k in range(1, len(words) + 1)]
+    return next((name for name in names if (folder / name).is_file()), names[0])
 
 
 def external_files(path: str | Path) -> list[tuple[str, Path]]:
