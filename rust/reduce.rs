@@ -82,6 +82,11 @@ pub fn referenced_bbox(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> ([f64; 3], 
     (lo.to_array(), hi.to_array())
 }
 
+/// The smallest widening in [`overlap_pad`] (length): a thousand times the smallest normal
+/// f32, above the outward rounding of the BVH's f32 boxes near zero (a mesh `1e-38` long
+/// scored 617 boxes per point on one triangle when its pads were subnormal).
+const MIN_OVERLAP_PAD: f64 = 1e3 * f32::MIN_POSITIVE as f64;
+
 /// The widening of every box in [`box_overlap`], per axis, for a mesh whose box has sides
 /// `extent`: `1e-3 × extent_axis` (at least `1e-8` of the largest side, so a flat mesh's
 /// zero side is counted). Per axis, the overlap does not change when an axis is scaled: a
@@ -93,7 +98,7 @@ pub fn overlap_pad(extent: DVec3) -> Option<DVec3> {
     if largest.is_nan() || largest <= 0.0 || !largest.is_finite() {
         return None;
     }
-    Some(1e-3 * extent.max(DVec3::splat(1e-5 * largest)))
+    Some((1e-3 * extent.max(DVec3::splat(1e-5 * largest))).max(DVec3::splat(MIN_OVERLAP_PAD)))
 }
 
 /// How many triangle bounding boxes a point of the mesh's bounding box lies in, on average

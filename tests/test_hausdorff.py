@@ -653,6 +653,14 @@ def test_overlapping_triangles_are_refused_not_measured_for_minutes():
         meshbits.compress(tangle, error=0.01, relative=True)
 
 
+def test_a_mesh_of_subnormal_size_is_not_refused_as_overlapping():
+    """One triangle 1.2e-38 long: its boxes' pads were subnormal, below the f32 boxes'
+    rounding, and it scored 617 boxes per point (found by hypothesis)."""
+    vertices = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.1754943508222875e-38]])
+    closest = meshbits.ClosestPoints((vertices, [[0, 0, 2]]))
+    assert closest.query(np.zeros((1, 3))).distances[0] == 0.0
+
+
 def test_parts_far_apart_along_one_axis_are_measured_not_refused():
     """Two bunnies 1e4 apart along x, one mesh: the empty middle of its long box holds no
     triangle, so they overlap no more than one bunny does (each side was widened by 1e-3
@@ -678,7 +686,7 @@ def _box_overlap_numpy(vertices: np.ndarray, faces: np.ndarray) -> float:
     largest = float(np.max(high - low))
     if largest == 0:
         return 0.0
-    pad = 1e-3 * np.maximum(high - low, 1e-5 * largest)
+    pad = np.maximum(1e-3 * np.maximum(high - low, 1e-5 * largest), 1e3 * 2.0**-126)
     corners = vertices[faces]
     extent = corners.max(axis=1) - corners.min(axis=1) + pad
     return float(np.prod(extent, axis=1).sum() / np.prod(high - low + pad))
