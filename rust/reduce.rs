@@ -95,7 +95,7 @@ const MIN_OVERLAP_PAD: f64 = 1e3 * f32::MIN_POSITIVE as f64;
 #[must_use]
 pub fn overlap_pad(extent: DVec3) -> Option<DVec3> {
     let largest = extent.max_element();
-    if largest.is_nan() || largest <= 0.0 || !largest.is_finite() {
+    if !(largest > 0.0 && largest.is_finite()) {
         return None;
     }
     Some((1e-3 * extent.max(DVec3::splat(1e-5 * largest))).max(DVec3::splat(MIN_OVERLAP_PAD)))
