@@ -171,8 +171,9 @@ def test_the_certified_bound_holds_of_the_written_file(
 
 @pytest.mark.parametrize("output", OUTPUTS[2:], ids=lambda o: f"{o[0]}-{o[1]}")
 def test_far_from_the_origin_costs_what_it_costs_at_the_origin(tmp_path, bunny, output):
-    """A georeferenced offset (UTM-like) to a glTF output: met, certified, and within 2%
-    of the bytes at the origin (the node's translation, in the JSON, is the difference)."""
+    """A georeferenced offset (UTM-like) to a glTF output: met, certified, and within 1%
+    of the bytes at the origin, or at most the node translation's JSON more (Draco's 2 kB
+    file: 32 bytes, 1.5%; written 420000.0 and -0.0, it took 40)."""
     vertices, faces = bunny
     sizes = []
     for offset in ([0.0, 0.0, 0.0], [4.2e5, 5.4e6, 0.0]):
@@ -181,7 +182,9 @@ def test_far_from_the_origin_costs_what_it_costs_at_the_origin(tmp_path, bunny, 
         case = run_case(folder, vertices + offset, faces, output, error=0.01, size_bytes=None)
         assert case["met"] and case["true"] <= case["bound"]
         sizes.append(case["bytes"])
-    assert sizes[1] <= 1.02 * sizes[0], sizes
+    translation = len(',"translation":[420000,5400000,0]')
+    padding = 3 if output[0] == ".glb" else 0
+    assert sizes[1] <= max(1.01 * sizes[0], sizes[0] + translation + padding), sizes
 
 
 @pytest.mark.parametrize("output", [(".drc", None), (".glb", "draco")], ids=["drc", "glb"])
@@ -226,3 +229,46 @@ def test_text_and_stl_outputs_hold_the_decoded_positions_exactly(tmp_path, bunny
         # Every written position is a decoded one, exactly (an STL's corners come back
         # once per face).
         assert set(map(tuple, written)) == set(map(tuple, result.vertices))
+
+
+@pytest.mark.parametrize("suffix", [".obj", ".off"])
+def test_text_outputs_far_from_the_origin_meet_the_budget(tmp_path, bunny, suffix, capsys):
+    """OBJ and OFF hold float64 text, but were written from Draco's float32 decoding of
+    the mesh where it lies: at (4.2e5, 5.4e6, 0) the bunny came out "unmet" at B = 1,
+    V = 4. They are compressed about a centre now and moved back in float64."""
+    import json
+
+    from meshbits.cli import main
+
+    vertices, faces = bunny
+    moved = vertices + np.array([4.2e5, 5.4e6, 0.0])
+    source = write_ply64(tmp_path / "far.ply", moved, faces)
+    target = tmp_path / f"far{suffix}"
+    code = main(
+        [
+            "compress",
+            str(source),
+            "--error",
+            "0.01",
+            "--relative",
+            "-o",
+            str(target),
+            "--json",
+            "--quiet",
+        ]
+    )
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0 and report["met"], report["message"]
+    assert report["bits"] >= 6 and report["vertices"] > 100 and any(report["frame"])
+    decoded = read_output(target)
+    assert np.abs(decoded[0]).max() > 5e6
+    true = hausdorff_lower((moved, faces), decoded, samples=8000)
+    assert true <= report["error_upper"] <= 0.01 * np.ptp(vertices, axis=0).max()
+
+
+def test_a_result_in_a_frame_is_not_written_as_a_drc(tmp_path, bunny):
+    vertices, faces = bunny
+    result = meshbits.compress_in_frame((vertices + 1e6, faces), error=0.01, relative=True)
+    assert result.frame.any() and np.abs(result.vertices).min() > 9e5
+    with pytest.raises(meshbits.MeshbitsError, match="centre"):
+        result.write(tmp_path / "x.drc")

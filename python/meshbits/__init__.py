@@ -11,7 +11,7 @@ from . import _core, model
 from ._core import MeshbitsError
 from .batch import BatchInterrupted, BatchResult, BatchRow, batch
 from .complexity import ShapeComplexity, shape_complexity
-from .compress import CompressResult, Iteration, compress
+from .compress import CompressResult, Iteration, compress, compress_in_frame
 from .formats import example_mesh_path, load_mesh, save_mesh
 from .hausdorff import (
     Closest,
@@ -71,6 +71,7 @@ __all__ = [
     "batch",
     "cluster",
     "compress",
+    "compress_in_frame",
     "compress_scene",
     "cube_grid",
     "dequantize",

@@ -322,6 +322,7 @@ def _run_demo(args: argparse.Namespace) -> int:
 _FORMATS = {".drc": "draco", ".ply": "ply"}
 _SCENE_FORMATS = (".glb", ".gltf")
 _UNSIZED_FORMATS = (".obj", ".off", ".stl")
+_FLOAT64_FORMATS = (".obj", ".off")
 #: What ``save_mesh`` writes (``meshbits quantize -o``).
 _MESH_OUTPUTS = (".ply", ".obj", ".off", ".stl", ".glb", ".gltf")
 
@@ -448,7 +449,7 @@ def _bound_text(result: Any, certify: bool) -> float | str:
 
 
 def _run_compress(args: argparse.Namespace) -> int:
-    from .compress import compress
+    from .compress import compress, compress_in_frame
     from .scene import merged_away
 
     _check_relative(args)
@@ -484,7 +485,9 @@ def _run_compress(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"  {in_unit(str(event), unit)}", file=sys.stderr)
 
-    result = compress(
+    # OBJ and OFF hold float64 text: far from the origin they are compressed about a centre.
+    run = compress_in_frame if suffix in _FLOAT64_FORMATS else compress
+    result = run(
         mesh,
         size=None if args.size is None else parse_size(args.size),
         error=args.error,

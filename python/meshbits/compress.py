@@ -19,7 +19,7 @@ import math
 import numbers
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +38,7 @@ from .constants import (
 from .encode import draco_max_bits
 from .errors import MeshbitsError
 from .files import write_atomic
+from .formats.gltf.write import frame_centre
 from .hausdorff import Reference, default_samples
 from .mesh import (
     MeshLike,
@@ -52,7 +53,7 @@ from .results import SAMPLED_ONLY, ArrayResult, ProgressCallback
 from .search import Iteration, Refused, Search, bound_answer, certify_answer, run_search
 from .simplify import METHODS, Simplifier, check_untangled, referenced_vertex_count
 
-__all__ = ["CERTIFY_TOLERANCE", "CompressResult", "Iteration", "compress"]
+__all__ = ["CERTIFY_TOLERANCE", "CompressResult", "Iteration", "compress", "compress_in_frame"]
 
 
 #: Fewest area samples per mesh of compress's measurements: a "met" should hold under an
@@ -151,6 +152,7 @@ class CompressResult(ArrayResult):
     kept_area: float = 1.0
     kept_extent: float = 1.0
     skipped: tuple[str, ...] = ()
+    frame: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
 
     @property
     def size_bytes(self) -> int:
@@ -163,7 +165,20 @@ class CompressResult(ArrayResult):
         return distinct_positions(self.vertices)
 
     def write(self, path: str | Path) -> Path:
-        """Write the encoded bytes atomically (see :func:`meshbits.files.write_atomic`)."""
+        """Write the encoded bytes atomically (see :func:`meshbits.files.write_atomic`).
+
+        Raises
+        ------
+        MeshbitsError
+            For a result of :func:`compress_in_frame` whose bytes encode the mesh moved by
+            ``-frame``: a .drc or .ply of them would be elsewhere than the input.
+        """
+        if self.frame.any():
+            raise MeshbitsError(
+                f"this result's encoding is relative to a centre at {self.frame.tolist()} "
+                "(mesh units) that a .drc or .ply cannot carry: write its vertices and "
+                "faces (meshbits.save_mesh to .obj or .off), or compress with compress()"
+            )
         return write_atomic(Path(path), self.data)
 
     def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
@@ -192,6 +207,7 @@ class CompressResult(ArrayResult):
             "kept_area": self.kept_area,
             "kept_extent": self.kept_extent,
             "skipped": list(self.skipped),
+            "frame": self.frame.tolist(),
             "plan": None if self.plan is None else self.plan.to_dict(),
             "iterations": [it.to_dict() for it in self.iterations],
             "seconds": dict(self.seconds),
@@ -430,6 +446,53 @@ def compress(
         seconds=seconds,
         source=level.source,
         max_bits=max_bits,
+    )
+
+
+def compress_in_frame(mesh: MeshLike, **options: Any) -> CompressResult:
+    """:func:`compress` for outputs that store float64 coordinates (OBJ, OFF): far from
+    the origin the mesh is compressed relative to its centre
+    (:func:`meshbits.formats.gltf.write.frame_centre`), where Draco's float32 positions
+    keep their precision, and the result's vertices are moved back in float64.
+
+    The move there is exact: the centre is a multiple of a power of two at or above the
+    mesh's size, so each coordinate minus it is a multiple of the coordinate's own spacing
+    and no larger than it. The move back rounds each coordinate by at most half a float64
+    spacing at the output's largest coordinate; the certified bound grows by that
+    (``sqrt(3)/2`` spacings), and an error budget it then exceeds is not met. The result's
+    ``frame`` is the centre; its bytes are the encoding of the moved mesh that the search
+    sized, so :meth:`CompressResult.write` refuses them. Options are :func:`compress`'s.
+    """
+    vertices, faces = as_mesh(mesh)
+    centre = frame_centre(vertices)
+    if not centre.any():
+        return compress((vertices, faces), **options)
+    lods = options.pop("lods", None)
+    if lods is not None:
+        moved_lods = []
+        for lod in lods:
+            lod_vertices, lod_faces = as_mesh(lod)
+            moved_lods.append((lod_vertices - centre, lod_faces))
+        options["lods"] = moved_lods
+    result = compress((vertices - centre, faces), **options)
+    placed = result.vertices.astype(np.float64) + centre
+    rounding = 0.5 * math.sqrt(3) * float(np.spacing(np.abs(placed).max(initial=0.0)))
+    upper = None if result.error_upper is None else result.error_upper + rounding
+    met, message = result.met, result.message
+    if met and result.constraint == "error" and upper is not None and upper > result.budget:
+        met = False
+        message += (
+            f" (not met: moving the output back from its centre rounds it by up to "
+            f"{rounding:.4g} (mesh units), which takes the certified bound to {upper:.6g})"
+        )
+    return replace(
+        result,
+        vertices=placed,
+        origin=result.origin + centre,
+        error_upper=upper,
+        met=met,
+        message=message,
+        frame=centre,
     )
 
 

@@ -42,7 +42,7 @@ from .files import asset_bytes, check_not_an_input, write_atomic
 from .formats.gltf.document import Document, PrimitiveData, largest_scale
 from .formats.gltf.spec import COMPONENT_DTYPES, COMPONENT_TYPES, MESHOPT_EXTENSIONS, WIDTH_TYPES
 from .formats.gltf.validate import finite_or_fail
-from .formats.gltf.write import frame_centre
+from .formats.gltf.write import frame_centre, json_number
 from .formats.open import load_document
 from .formats.sniff import image_size
 from .hausdorff import Reference, default_samples
@@ -73,6 +73,9 @@ __all__ = [
 #: beyond, positions are float32 on the grid, up to :data:`MESHOPT_MAX_BITS`.
 MESHOPT_INTEGER_BITS = 16
 MESHOPT_MAX_BITS = 24
+#: How many bits finer than the finest its jobs chose a cluster's shared meshopt grid
+#: may go when one of them misses its budget on it (each halves the rounding).
+SHARED_GRID_EXTRA_BITS = 3
 
 #: Codecs of :func:`compress_scene`.
 CODECS = ("draco", "meshopt")
@@ -272,6 +275,13 @@ def _index_component(count: int) -> int:
     return 5123 if count < 65536 else 5125
 
 
+def _float32_number(value: float) -> float:
+    """A float32 value as the shortest decimal that reads back to it in float32 (at most
+    9 digits, where its double expansion takes up to 17: an accessor's ``min`` and ``max``
+    are float32 values)."""
+    return float(str(np.float32(value)))
+
+
 def _accessor_fields(
     values: np.ndarray, component: int, normalized: bool, bounds: bool
 ) -> dict[str, Any]:
@@ -284,7 +294,7 @@ def _accessor_fields(
     if normalized:
         out["normalized"] = True
     if bounds and len(values):
-        cast = float if component == 5126 else int
+        cast = _float32_number if component == 5126 else int
         out["min"] = [cast(x) for x in np.min(values, axis=0).reshape(-1)]
         out["max"] = [cast(x) for x in np.max(values, axis=0).reshape(-1)]
     return out
@@ -1482,19 +1492,31 @@ def _shared_grids(
                 for i, lv in zip(members, levels, strict=True)
             )
             bits = max(1, math.ceil(math.log2(side / finest + 1))) if side > 0 else 1
-            if bits <= MESHOPT_INTEGER_BITS:
+            # The shared grid's points are not the ones each job was measured on: where
+            # one now misses its budget, finer grids are tried before float32 positions.
+            for shared_bits in range(
+                bits, min(bits + SHARED_GRID_EXTRA_BITS, MESHOPT_INTEGER_BITS) + 1
+            ):
                 for i, level in zip(members, levels, strict=True):
                     encoding = encode_meshopt_primitive(
                         level.vertices,
                         level.faces,
                         level.attributes,
-                        bits,
+                        shared_bits,
                         origin,
                         side,
                         jobs[i].bits,
                     )
-                    encoding.bits = bits
+                    encoding.bits = shared_bits
                     again(i, encoding)
+                if budgets is None or all(
+                    uppers[i] is not None and uppers[i] <= budgets[i] for i in members
+                ):
+                    break
+            else:
+                if bits <= MESHOPT_INTEGER_BITS:
+                    integer = False
+            if integer and bits <= MESHOPT_INTEGER_BITS:
                 continue
         for i, level in zip(members, levels, strict=True):
             if encodings[i].dequantize is None:
@@ -2007,7 +2029,7 @@ def _apply_frames(
         origin, step = frames[mesh]
         alone = set(node) <= {"mesh", "name", "translation", "rotation", "scale", "matrix"}
         if not alone or index in animated:
-            child: dict[str, Any] = {"mesh": mesh, "translation": [float(x) for x in origin]}
+            child: dict[str, Any] = {"mesh": mesh, "translation": [json_number(x) for x in origin]}
             if step != 1.0:
                 child["scale"] = [step] * 3
             if "weights" in node:
@@ -2024,7 +2046,7 @@ def _apply_frames(
             node["matrix"] = [float(x) for x in (local @ d).T.reshape(-1)]
         else:
             rotation_scale = local[:3, :3]
-            node["translation"] = [float(x) for x in local[:3, 3] + rotation_scale @ origin]
+            node["translation"] = [json_number(x) for x in local[:3, 3] + rotation_scale @ origin]
             if step != 1.0:
                 node["scale"] = [float(s) * step for s in node.get("scale", [1.0, 1.0, 1.0])]
 

@@ -24,7 +24,7 @@ from ..obj import missing_material_libraries
 from .document import Document
 from .spec import GLB_MAGIC, MESHOPT_EXTENSIONS, unread_required_extensions
 from .validate import check_references
-from .write import frame_centre
+from .write import frame_centre, json_number
 
 __all__ = [
     "check_glb_header",
@@ -212,7 +212,7 @@ def document_from_trimesh(loaded: Any, path: Path, file_type: str) -> Document:
         roots = {n for scene_spec in document.json.get("scenes", []) for n in scene_spec["nodes"]}
         for root in sorted(roots):
             nodes[root].pop("matrix", None)
-            nodes[root]["translation"] = [float(x) for x in centre]
+            nodes[root]["translation"] = [json_number(x) for x in centre]
     return document
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from ...files import write_atomic
 
-__all__ = ["FRAME_DISTANCE", "frame_centre", "gltf_files", "write_gltf"]
+__all__ = ["FRAME_DISTANCE", "frame_centre", "gltf_files", "json_number", "write_gltf"]
 
 #: A mesh whose box centre is farther from the origin than this many times its largest
 #: side is stored relative to that centre (:func:`frame_centre`): there float32 rounds a
@@ -39,6 +39,15 @@ def frame_centre(points: np.ndarray) -> np.ndarray:
         unit = 2.0 ** math.ceil(math.log2(extent))
         centre = np.round(centre / unit) * unit
     return centre
+
+
+def json_number(value: float) -> float | int:
+    """A float64 as JSON writes it shortest and exactly: an integral value as an integer
+    (``420000`` for ``420000.0``; ``0`` for ``-0.0``)."""
+    value = float(value)
+    if value.is_integer() and abs(value) < 2**53:
+        return int(value)
+    return value
 
 
 def gltf_files(mesh: object, path: Path) -> dict[str, bytes]:
