@@ -272,3 +272,16 @@ def test_a_result_in_a_frame_is_not_written_as_a_drc(tmp_path, bunny):
     assert result.frame.any() and np.abs(result.vertices).min() > 9e5
     with pytest.raises(meshbits.MeshbitsError, match="centre"):
         result.write(tmp_path / "x.drc")
+
+
+def test_info_names_a_float64_input_float64(tmp_path, bunny, capsys):
+    """``meshbits info`` called a float64 PLY's positions float32 (the accessor of the
+    glTF it is read as), though meshbits measures against the float64 values."""
+    from meshbits.cli import main
+
+    vertices, faces = bunny
+    source = write_ply64(tmp_path / "double.ply", vertices + 0.1, faces)
+    assert main(["info", str(source)]) == 0
+    assert "POSITION (VEC3 float64)" in capsys.readouterr().out
+    assert main(["info", str(DATA / "bunny_res4.ply")]) == 0
+    assert "POSITION (VEC3 float32)" in capsys.readouterr().out

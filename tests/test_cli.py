@@ -759,3 +759,46 @@ def test_a_batch_into_its_own_input_folder_says_why_nothing_runs(tmp_path, capsy
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert "2 mesh files inside the output folder" in err and err.count("\n") == 1, err
+
+
+def test_damaged_files_give_one_line_and_no_python_warning(tmp_path):
+    """Files with bytes overwritten (a GLB, a PLY, an STL): whatever each gives, exit 0, 1
+    or 2, no Python warning reaches stderr (trimesh's and numpy's RuntimeWarnings did),
+    and a refusal is one line."""
+    import numpy as np
+    import trimesh
+
+    ball = trimesh.creation.icosphere(subdivisions=3)
+    sources = {
+        ".glb": ball.export(file_type="glb"),
+        ".ply": (DATA / "bunny_res4.ply").read_bytes(),
+        ".stl": ball.export(file_type="stl"),
+    }
+    rng = np.random.default_rng(4)
+    for suffix, data in sources.items():
+        for copy in range(3):
+            damaged = bytearray(data)
+            for at in rng.integers(0, len(damaged), 8):
+                damaged[at] = int(rng.integers(0, 256))
+            path = tmp_path / f"damaged{copy}{suffix}"
+            path.write_bytes(bytes(damaged))
+            argv = ["compress", str(path), "--error", "0.01", "--relative", "--quiet"]
+            out = subprocess.run(
+                [
+                    sys.executable,
+                    "-W",
+                    "default",
+                    "-m",
+                    "meshbits.cli",
+                    *argv,
+                    "-o",
+                    str(tmp_path / "out.glb"),
+                ],
+                capture_output=True,
+                text=True,
+                check=False,
+            )
+            assert out.returncode in (0, 1, 2), out.stderr
+            assert "Warning" not in out.stderr, out.stderr
+            if out.returncode == 2:
+                assert out.stderr.count("\n") == 1, out.stderr

@@ -682,6 +682,19 @@ def test_an_obj_written_as_one_mesh_counts_what_it_leaves_out(tmp_path, capsys):
     assert "note: ball.obj is written to .drc as one merged mesh" in captured.err
 
 
+@pytest.mark.parametrize("suffix", [".drc", ".ply", ".obj"])
+def test_a_missing_material_library_is_noted_for_every_output(tmp_path, capsys, suffix):
+    """The note that an OBJ's .mtl is missing came only with a glTF output."""
+    source = textured_obj(tmp_path, 8, 16, 8)
+    source.with_suffix(".mtl").unlink()
+    argv = ["compress", str(source), "--error", "0.01", "--relative"]
+    assert main([*argv, "-o", str(tmp_path / f"out{suffix}"), "--json"]) == 0
+    captured = capsys.readouterr()
+    away = json.loads(captured.out)["merged_away"]
+    assert away["missing_material_libraries"] == [source.with_suffix(".mtl").name]
+    assert f"{source.with_suffix('.mtl').name} named by {source.name} not found" in captured.err
+
+
 def test_the_api_refuses_an_output_that_is_its_input(tmp_path):
     """``compress_scene(x, output=x)`` replaced the input (the CLI refused it already)."""
     glb, _ = build_scene(tmp_path / "scene.glb")

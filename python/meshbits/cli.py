@@ -138,10 +138,18 @@ def _budget_unit(args: argparse.Namespace, unit: str) -> str:
 
 def _note_merged_away(path: Path, suffix: str, away: dict[str, Any]) -> None:
     """One stderr line naming what a merged-mesh output leaves out of a scene input."""
+    missing = away.get("missing_material_libraries", [])
+    if missing:
+        print(
+            f"note: material librar{'ies' if len(missing) > 1 else 'y'} "
+            f"{', '.join(missing)} named by {path.name} not found beside it: its materials "
+            "are unknown",
+            file=sys.stderr,
+        )
     parts = [
         f"{n} {k.replace('_', ' ')[: None if n != 1 else -1]}"
         for k, n in away.items()
-        if k != "attributes"
+        if k not in ("attributes", "missing_material_libraries")
     ]
     if away["attributes"]:
         parts.append("the vertex attributes " + ", ".join(away["attributes"]))

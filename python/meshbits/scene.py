@@ -43,6 +43,7 @@ from .formats.gltf.document import Document, PrimitiveData, largest_scale
 from .formats.gltf.spec import COMPONENT_DTYPES, COMPONENT_TYPES, MESHOPT_EXTENSIONS, WIDTH_TYPES
 from .formats.gltf.validate import finite_or_fail
 from .formats.gltf.write import frame_centre, json_number
+from .formats.obj import missing_material_libraries
 from .formats.open import load_document
 from .formats.sniff import image_size
 from .hausdorff import Reference, default_samples
@@ -2077,7 +2078,8 @@ def omitted_by_merging(path: str | Path) -> dict[str, Any]:
     (what :func:`meshbits.load_mesh` reads, written to ``.drc``, ``.ply``...) leaves out,
     counted:
     materials, textures, images, skins, animations and morph targets (those present), and
-    ``attributes``, the names of the vertex attributes other than ``POSITION``. The node
+    ``attributes``, the names of the vertex attributes other than ``POSITION``, and for an
+    OBJ whose ``mtllib`` files are not beside it, ``missing_material_libraries``. The node
     hierarchy is flattened: every instance is placed in world space."""
     j = load_document(path).json
     attributes: set[str] = set()
@@ -2091,7 +2093,10 @@ def omitted_by_merging(path: str | Path) -> dict[str, Any]:
         for key in ("materials", "textures", "images", "skins", "animations")
     }
     counts["morph_targets"] = targets
-    return {**{k: n for k, n in counts.items() if n}, "attributes": sorted(attributes)}
+    missing = missing_material_libraries(Path(path))
+    return {**{k: n for k, n in counts.items() if n}, "attributes": sorted(attributes)} | (
+        {"missing_material_libraries": missing} if missing else {}
+    )
 
 
 def scene_info(path: str | Path) -> dict[str, Any]:
@@ -2111,6 +2116,13 @@ def scene_info(path: str | Path) -> dict[str, Any]:
                     f"{spec['type']} {np.dtype(_dtype_name(spec['componentType'])).name}"
                     + (" normalized" if spec.get("normalized") else "")
                 )
+                exact = document.exact_positions.get(acc) if name == "POSITION" else None
+                if exact is not None and not np.array_equal(
+                    exact.astype(np.float32).astype(np.float64), exact
+                ):
+                    # A PLY, OBJ... read as a glTF scene: meshbits measures and keeps the
+                    # file's own float64 coordinates, not the float32 accessor.
+                    attributes[name] = f"{spec['type']} float64"
                 if spec.get("bufferView") is not None:
                     geometry_views.add(spec["bufferView"])
             if (
