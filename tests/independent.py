@@ -158,13 +158,71 @@ def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
     return np.stack([np.full(len(i), indices[0]), indices[i + 1], indices[i + 2]], axis=1)
 
 
-def gltf_world_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def node_world_matrices(doc: dict) -> dict[int, np.ndarray]:
+    """node -> its world matrix (float64), for every node of the default scene."""
+    out: dict[int, np.ndarray] = {}
+    stack = [(n, np.eye(4)) for n in doc["scenes"][doc.get("scene", 0)]["nodes"]]
+    while stack:
+        index, parent = stack.pop()
+        out[index] = parent @ node_matrix(doc["nodes"][index])
+        stack += [(c, out[index]) for c in doc["nodes"][index].get("children", [])]
+    return out
+
+
+def _skinned(
+    doc: dict, blob: bytes, skin: dict, data: dict, worlds: dict[int, np.ndarray]
+) -> np.ndarray:
+    """Positions posed by a skin at the scene's default (rest) transforms, glTF 2.0
+    Sec. 3.7.3: ``sum_k w_k * world(joint_k) @ inverseBind(joint_k) @ v``, in float64."""
+    joints = skin["joints"]
+    if skin.get("inverseBindMatrices") is not None:
+        inverse = accessor(doc, blob, skin["inverseBindMatrices"]).astype(np.float64)
+        inverse = inverse.reshape(-1, 4, 4).transpose(0, 2, 1)
+    else:
+        inverse = np.broadcast_to(np.eye(4), (len(joints), 4, 4))
+    matrices = np.stack([worlds[j] @ inverse[i] for i, j in enumerate(joints)])
+    local = np.asarray(data["POSITION"], dtype=np.float64)
+    homogeneous = np.hstack([local, np.ones((len(local), 1))])
+    posed = np.zeros((len(local), 4))
+    sets = 0
+    while f"JOINTS_{sets}" in data:
+        index = np.asarray(data[f"JOINTS_{sets}"], dtype=np.int64)
+        weight = np.asarray(data[f"WEIGHTS_{sets}"], dtype=np.float64)
+        for k in range(index.shape[1]):
+            posed += weight[:, k, None] * np.einsum(
+                "nij,nj->ni", matrices[index[:, k]], homogeneous
+            )
+        sets += 1
+    return posed[:, :3]
+
+
+def _morphed(doc: dict, blob: bytes, mesh: dict, node: dict, prim: dict, local: np.ndarray):
+    """Positions with the default morph weights applied (the node's, else the mesh's)."""
+    weights = node.get("weights", mesh.get("weights"))
+    if not weights or not any(weights):
+        return local
+    out = local.copy()
+    for weight, target in zip(weights, prim.get("targets") or [], strict=False):
+        if weight and "POSITION" in target:
+            out += weight * accessor(doc, blob, target["POSITION"]).astype(np.float64)
+    return out
+
+
+def gltf_world_mesh(path: Path, skinned: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Every triangle primitive of a .glb/.gltf at each node showing it, in world
-    coordinates composed in float64: one mesh."""
+    coordinates composed in float64: one mesh. With ``skinned``, a skinned node's
+    primitives are posed by its skin at the rest transforms (the node's own transform is
+    then ignored, as glTF says) and the default morph weights are applied: what a viewer
+    shows before any animation plays."""
     doc, blob = read_gltf(path)
+    worlds = node_world_matrices(doc)
     vertices, faces, offset = [], [], 0
-    for mesh, matrices in world_matrices(doc).items():
-        for prim in doc["meshes"][mesh]["primitives"]:
+    for index, world in worlds.items():
+        node = doc["nodes"][index]
+        if "mesh" not in node:
+            continue
+        mesh = doc["meshes"][node["mesh"]]
+        for prim in mesh["primitives"]:
             mode = prim.get("mode", 4)
             if mode not in (4, 5, 6):
                 continue
@@ -172,12 +230,17 @@ def gltf_world_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
             if any(i is not None and "sparse" in doc["accessors"][i] for i in used):
                 raise NotImplementedError("sparse accessors are not read here")
             data = decode_primitive(doc, blob, prim)
-            local = np.asarray(data["POSITION"], dtype=np.float64)
             triangles = _triangles(np.asarray(data["indices"], dtype=np.int64).reshape(-1), mode)
-            for matrix in matrices:
-                vertices.append(local @ matrix[:3, :3].T + matrix[:3, 3])
-                faces.append(triangles + offset)
-                offset += len(local)
+            local = np.asarray(data["POSITION"], dtype=np.float64)
+            if skinned:
+                local = _morphed(doc, blob, mesh, node, prim, local)
+            if skinned and node.get("skin") is not None:
+                data = dict(data, POSITION=local)
+                vertices.append(_skinned(doc, blob, doc["skins"][node["skin"]], data, worlds))
+            else:
+                vertices.append(local @ world[:3, :3].T + world[:3, 3])
+            faces.append(triangles + offset)
+            offset += len(local)
     return np.concatenate(vertices), np.concatenate(faces)
 
 
