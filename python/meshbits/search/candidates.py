@@ -405,13 +405,13 @@ class Planner:
         """The finest level whose encoding at ``bits`` fits the size budget: the original
         if it fits, else a simplification sized by the bits per vertex seen."""
         if not self.cache.can_simplify():
-            fitting = [
+            fit = [
                 i
                 for i, level in enumerate(self.levels)
                 if level.vertex_count <= CHEAP_VERTICES or bits in level.encodings
                 if self.cache.size_of(i, bits) <= self.budget
             ]
-            return max(fitting, key=lambda i: self.levels[i].vertex_count, default=None)
+            return max(fit, key=lambda i: self.levels[i].vertex_count, default=None)
         if self._original_fits(bits):
             return 0
         vertices = FIT_AIM * self.budget / self._rate(bits)
@@ -530,8 +530,8 @@ class Planner:
             )
         if index is None:
             index = min(range(len(self.levels)), key=lambda i: self.levels[i].vertex_count)
-        order = range(int(MODEL_MIN_BITS), self.max_bits + 1)
-        return next(filter(None, (self.candidate(index, b) for b in order)), None)
+        coarsest_first = range(int(MODEL_MIN_BITS), self.max_bits + 1)
+        return next(filter(None, (self.candidate(index, b) for b in coarsest_first)), None)
 
     def candidate(self, index: int, bits: int) -> Candidate | None:
         """Level ``index`` at ``bits``, encoded, with its predicted error; None when the

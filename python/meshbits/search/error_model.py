@@ -101,17 +101,26 @@ def first_plan(
     """The paper's model's (B, V) for the budget, before any measurement; None when the
     model has no plan (a size budget below its smallest mesh, an error budget of a whole
     grid side or more)."""
-    options = {"grid_size": grid_size, "alpha": alpha, "connectivity_bits": connectivity_bits}
     if constraint == "size":
         smallest = MODEL_MIN_VERTICES * (3.0 * alpha * MODEL_MIN_BITS + connectivity_bits)
         if budget < smallest:
             return None
-        return model.plan_for_size(budget, k, **options)
+        return model.plan_for_size(
+            budget, k, grid_size=grid_size, alpha=alpha, connectivity_bits=connectivity_bits
+        )
     if constraint == "error":
         if budget >= grid_size:
             return None
-        return model.plan_for_error(budget, k, **options)
-    return model.plan_for_vertices(max(budget, MODEL_MIN_VERTICES), k, **options)
+        return model.plan_for_error(
+            budget, k, grid_size=grid_size, alpha=alpha, connectivity_bits=connectivity_bits
+        )
+    return model.plan_for_vertices(
+        max(budget, MODEL_MIN_VERTICES),
+        k,
+        grid_size=grid_size,
+        alpha=alpha,
+        connectivity_bits=connectivity_bits,
+    )
 
 
 def learned(lower: float, upper: float | None, budget: float, deciding: bool) -> float:

@@ -232,6 +232,7 @@ def simplify_locking(
 
     if not use_locks or len(result.faces) == 0:
         return result, 0, named(result)
+    assert aim is not None  # use_locks
     used = referenced(source[1], len(source[0]))
     for _ in range(rounds):
         level = ClosestPoints(result.mesh, check=False)
