@@ -296,7 +296,7 @@ class Planner:
         )
         if first is None:
             return range(0)
-        above = BITS_ABOVE if not self.cache.large else 1
+        above = 1 if self.cache.large else BITS_ABOVE
         return range(first, min(first + above, self.max_bits) + 1)
 
     def error_bits(self) -> list[int]:
