@@ -975,3 +975,14 @@ def test_parse_length(text, length):
 def test_parse_length_refuses(text):
     with pytest.raises(meshbits.MeshbitsError, match="length"):
         meshbits.parse_length(text)
+
+
+def test_the_size_model_parameters_are_checked_as_single_numbers():
+    """compress and the plans check alpha and T the same way (model.size_model_parameters)."""
+    assert model.size_model_parameters(0.5, 4) == (0.5, 4.0)
+    with pytest.raises(meshbits.MeshbitsError, match="alpha must be in"):
+        model.size_model_parameters(1.5, 4)
+    with pytest.raises(meshbits.MeshbitsError, match="connectivity_bits must be finite"):
+        model.size_model_parameters(0.5, -1)
+    with pytest.raises(TypeError, match="alpha must be a single number"):
+        model.size_model_parameters([0.5, 0.6], 4)

@@ -15,11 +15,13 @@ from meshbits.encode import encode_draco
 from meshbits.search import (
     COMBINE_DELTA,
     QUANTIZATION_FACTOR,
+    Search,
     allowed_tessellation,
     combined_error,
     interaction,
     quantization_error,
 )
+from meshbits.search.candidates import Planner
 
 compress_module = importlib.import_module("meshbits.compress")
 SPOT = meshbits.load_mesh(meshbits.example_mesh_path())
@@ -93,21 +95,19 @@ def _least_bits(mesh, level, budget):
 
 
 @pytest.mark.parametrize(("name", "relative"), [("spot", 0.003), ("bunny.ply", 0.002)])
-def test_the_chosen_bits_are_the_least_for_the_chosen_mesh(name, relative):
+def test_the_chosen_bits_are_the_least_for_the_chosen_mesh(name, relative, monkeypatch):
     """At its own mesh, compress does not spend a bit the budget does not need."""
     mesh = SPOT if name == "spot" else load(name)
     captured = {}
-    original_run = compress_module.run_search
+    original_run = Search.run
 
     def spy(search, *args, **kwargs):
         captured["search"] = search
         return original_run(search, *args, **kwargs)
 
-    compress_module.run_search = spy
-    try:
-        result = meshbits.compress(mesh, error=relative, relative=True)
-    finally:
-        compress_module.run_search = original_run
+    monkeypatch.setattr(Search, "run", spy)
+    result = meshbits.compress(mesh, error=relative, relative=True)
+    monkeypatch.undo()
     assert result.met
     search = captured["search"]
     chosen = search.best()
@@ -142,10 +142,10 @@ def test_a_level_straying_from_more_than_its_share_locks_the_farthest(monkeypatc
     of the original: it locks the farthest tenth of its vertex count (exact distances,
     ranked), not none as it used to (the dragon at 200,000 bits kept its spikes then)."""
     from meshbits.hausdorff import ClosestPoints
-    from meshbits.search import LOCK_MAX_FRACTION, _simplify_locking
+    from meshbits.search.levels import LOCK_MAX_FRACTION, simplify_locking
 
-    search_module = importlib.import_module("meshbits.search")
-    monkeypatch.setattr(search_module, "LOCK_ROUNDS", 1)
+    levels_module = importlib.import_module("meshbits.search.levels")
+    monkeypatch.setattr(levels_module, "LOCK_ROUNDS", 1)
     horse = load("horse.ply")
     vertices, faces = horse
     first = meshbits.simplify(horse, 2000, method="meshopt", update_positions=True)
@@ -155,7 +155,7 @@ def test_a_level_straying_from_more_than_its_share_locks_the_farthest(monkeypatc
     aim = float(np.quantile(distances[used], 0.5))
     assert np.count_nonzero(distances[used] > aim) > cap
     strays = np.zeros(len(vertices), dtype=bool)
-    result, locked, _ = _simplify_locking(horse, "meshopt", {"vertices": 2000}, aim, strays)
+    result, locked, _ = simplify_locking(horse, "meshopt", {"vertices": 2000}, aim, strays)
     assert locked == cap
     farthest = used[np.argsort(-distances[used], kind="stable")[:cap]]
     assert set(np.flatnonzero(strays)) == set(farthest.tolist())
@@ -177,7 +177,7 @@ def test_passes_are_few_and_reported():
     fails its certification; at most PASSES_AFTER_MET after the first met result. (The
     spot at 0.002 S: its sampled answer failed certification after 4 passes; the next met
     at the 5th, then two more passes looked for a smaller file.)"""
-    from meshbits.search import PASSES_AFTER_MET
+    from meshbits.search.candidates import PASSES_AFTER_MET
 
     result = meshbits.compress(SPOT, error=0.002, relative=True)
     assert 1 <= len(result.iterations) <= 2 * 6
@@ -246,8 +246,6 @@ def test_the_closest_result_is_the_least_sampled_error():
     with another result's sampled maximum picked a less accurate output."""
     from types import SimpleNamespace
 
-    from meshbits.search import Search
-
     sampled = SimpleNamespace(measured_error=2.5e-4, decisive_error=2.5e-4)
     certified = SimpleNamespace(measured_error=2.3e-4, decisive_error=9e-4)
     search = SimpleNamespace(constraint="error", measurements=[sampled, certified])
@@ -264,14 +262,12 @@ def test_with_nothing_expected_to_meet_a_finer_level_then_the_original_is_measur
     meet the budget, then at the next B once that missed."""
     from types import SimpleNamespace
 
-    from meshbits.search import Search
-
     search, budget = _spot_search(0.002)
-    monkeypatch.setattr(Search, "_error_candidates", lambda self: [])
-    coarse = search._simplified("meshopt", vertices=300)
-    fine = search._simplified("meshopt", vertices=1500)
+    monkeypatch.setattr(Planner, "error_candidates", lambda self: [])
+    coarse = search.cache.simplified("meshopt", vertices=300)
+    fine = search.cache.simplified("meshopt", vertices=1500)
     assert 0 < coarse < fine
-    first = search._error_bits()[0]
+    first = search.planner.error_bits()[0]
 
     def missed(index: int, bits: int) -> None:
         search.levels[index].errors[bits] = 2 * budget
@@ -306,34 +302,33 @@ def test_exploring_takes_the_smallest_built_level_predicted_within_the_wide_aim(
     and only within EXPLORE_WIDE times the budget."""
     from types import SimpleNamespace
 
-    from meshbits.search import EXPLORE_WIDE, STOP_GAIN, Search, _Candidate
+    from meshbits.search.candidates import EXPLORE_WIDE, STOP_GAIN, Candidate
 
     search, budget = _spot_search(0.002)
-    levels = [search._simplified("meshopt", vertices=n) for n in (400, 800, 1600)]
-    bits = search._error_bits()[0]
+    levels = [search.cache.simplified("meshopt", vertices=n) for n in (400, 800, 1600)]
+    bits = search.planner.error_bits()[0]
     best = SimpleNamespace(measured_size_bits=1e9, met=True)
     predicted = {}
 
     def candidate(self, index, b):
         error, size = predicted.get((index, b), (10 * budget, 1e12))
-        return _Candidate(level=index, bits=b, error=error, size_bits=size)
+        return Candidate(level=index, bits=b, error=error, size_bits=size)
 
-    monkeypatch.setattr(Search, "_candidate", candidate)
+    monkeypatch.setattr(Planner, "candidate", candidate)
     predicted[(levels[0], bits)] = (1.01 * EXPLORE_WIDE * budget, 1e5)
     predicted[(levels[1], bits)] = (0.99 * EXPLORE_WIDE * budget, 3e5)
     predicted[(levels[2], bits)] = (1.1 * budget, 2e5)
-    proposed = search._exploring(best)
+    proposed = search.planner.exploring(best)
     assert (proposed.level, proposed.bits) == (levels[2], bits)
     best.measured_size_bits = 2e5 / (1 - STOP_GAIN) * 0.999
-    assert search._exploring(best) is None
-    assert search._exploring(None) is None
+    assert search.planner.exploring(best) is None
+    assert search.planner.exploring(None) is None
 
 
-def _spot_search(relative_budget: float, mesh=SPOT, samples: int = 10_000):
-    """A search (meshoptimizer, Draco) for an error budget on the spot (or ``mesh``), and
-    the budget in mesh units."""
+def _spot_search(relative_budget: float, mesh=SPOT, samples: int = 10_000, codec=None):
+    """A search (meshoptimizer, Draco, or ``codec``) for an error budget on the spot (or
+    ``mesh``), and the budget in mesh units."""
     from meshbits.hausdorff import Reference
-    from meshbits.search import Search
 
     complexity = meshbits.shape_complexity(mesh)
     budget = relative_budget * complexity.grid_size
@@ -352,6 +347,7 @@ def _spot_search(relative_budget: float, mesh=SPOT, samples: int = 10_000):
         simplifier=None,
         lods=None,
         samples=samples,
+        codec=codec,
     )
     return search, budget
 
@@ -360,11 +356,11 @@ def test_the_welded_original_counts_the_vertices_its_faces_use():
     """An STL repeats every corner of every face; compress welds it, leaving the copies
     unused, and the original level counts the vertices its faces use (the soup's three per
     face were taken for its vertex count: 208,353 for the bunny's 34,834)."""
-    from meshbits.mesh import as_mesh
+    from meshbits.mesh import as_mesh, weld
 
     vertices, faces = SPOT
     soup = (vertices[faces].reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3))
-    welded = compress_module._weld(as_mesh(*soup))
+    welded = weld(as_mesh(*soup))
     search, _ = _spot_search(0.01, welded, samples=1_000)
     assert len(welded[0]) == 3 * len(faces)
     assert search.levels[0].source == "original"
@@ -376,9 +372,7 @@ def test_candidates_the_encoder_refuses_are_skipped_and_counted():
     search goes on without them, and says how many it skipped."""
     from meshbits.encode import encode
     from meshbits.errors import MeshbitsError
-    from meshbits.search import run_search
 
-    search, _ = _spot_search(0.002)
     refused_bits = set(range(8, 13))
 
     def codec(vertices, faces, attributes, bits, origin, grid_size):
@@ -386,8 +380,8 @@ def test_candidates_the_encoder_refuses_are_skipped_and_counted():
             raise MeshbitsError(f"no {bits}")
         return encode((vertices, faces), bits, format="draco", origin=origin, grid_size=grid_size)
 
-    search.codec = codec
-    run_search(search, 6)
+    search, _ = _spot_search(0.002, codec=codec)
+    search.run(6)
     best = search.best()
     assert best is not None and best.bits not in refused_bits
     assert search.refused and all(bits in refused_bits for _, bits in search.refused)
@@ -396,13 +390,11 @@ def test_candidates_the_encoder_refuses_are_skipped_and_counted():
 
 def test_an_encoder_that_refuses_everything_is_said_so():
     from meshbits.errors import MeshbitsError
-    from meshbits.search import Refused, run_search
-
-    search, _ = _spot_search(0.002)
+    from meshbits.search import Refused
 
     def codec(*args):
         raise MeshbitsError("never")
 
-    search.codec = codec
+    search, _ = _spot_search(0.002, codec=codec)
     with pytest.raises(Refused, match="refused every candidate"):
-        run_search(search, 6)
+        search.run(6)

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from . import _core, model
+from . import model
 from .complexity import ShapeComplexity, shape_complexity
 from .constants import (
     ANSWER_RELATIVE_TOLERANCE,
@@ -47,10 +47,11 @@ from .mesh import (
     draco_drops_note,
     kept_shape,
     lost_geometry_note,
+    weld,
 )
 from .quantize import precision_bits
 from .results import SAMPLED_ONLY, ArrayResult, ProgressCallback
-from .search import Iteration, Refused, Search, bound_answer, certify_answer, run_search
+from .search import Iteration, Refused, Search
 from .simplify import METHODS, Simplifier, check_untangled, referenced_vertex_count
 
 __all__ = ["CERTIFY_TOLERANCE", "CompressResult", "Iteration", "compress", "compress_in_frame"]
@@ -222,18 +223,10 @@ class CompressResult(ArrayResult):
         )
 
 
-def _weld(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Point every face at the first of the vertices with its coordinates (STL files are
-    triangle soups: without this no edge is shared); duplicates become unreferenced."""
-    vertices, faces = mesh
-    welded, merged = _core.weld(vertices, faces)
-    return (vertices, welded) if merged else mesh
-
-
 def welded_vertex_count(mesh: MeshLike) -> int:
     """The vertices a mesh's faces use once identical positions are welded (an STL file
     repeats every shared corner): the ``V`` of the paper's model."""
-    return referenced_vertex_count(_weld(as_mesh(mesh))[1])
+    return referenced_vertex_count(weld(as_mesh(mesh))[1])
 
 
 def compress(
@@ -308,10 +301,10 @@ def compress(
         (refined until it decides the budget) is within it (default). For a size or
         vertex budget, bound the answer's error (``error_upper``) within 5% of its
         sampled value, or leave it unbounded when a million refinement points do not get
-        there (:func:`meshbits.search.bound_answer`). The search explores
+        there (:meth:`meshbits.search.Search.bound_answer`). The search explores
         with sampled distances and certifies its answer, trying the next best when the
-        bound exceeds the budget (:func:`meshbits.search.certify_answer`). ``False`` lets
-        the sampled distance decide: faster, but a sample only bounds the error from
+        bound exceeds the budget (:meth:`meshbits.search.Search.certify_answer`).
+        ``False`` lets the sampled distance decide: faster, but a sample only bounds the error from
         below, and at the default density it fell short of the true distance by up to 17%
         (the cow at 0.002 S: reported 0.0194, at least 0.0236 in truth), so "met" could
         be over budget.
@@ -347,11 +340,8 @@ def compress(
         raise MeshbitsError(
             f"the {constraint} budget must be a positive finite number, got {value}"
         )
-    alpha = model._scalar(model._alpha(alpha), "alpha")
-    connectivity_bits = model._scalar(
-        model._nonnegative("connectivity_bits", connectivity_bits), "connectivity_bits"
-    )
-    original = _weld(as_mesh(mesh))
+    alpha, connectivity_bits = model.size_model_parameters(alpha, connectivity_bits)
+    original = weld(as_mesh(mesh))
     available = referenced_vertex_count(original[1])
     # A tangle (fan-triangulated polygons of hundreds of corners) takes fast-simplification
     # and the Hausdorff BVH minutes to hours: one of 245k faces on 507 vertices, 3 minutes.
@@ -391,16 +381,16 @@ def compress(
         samples=count,
     )
     try:
-        run_search(search, max_iterations, progress)
+        search.run(max_iterations, progress)
     except Refused as err:
         raise MeshbitsError(
             f"no {format} output of this mesh could be encoded: {err}"
             + _unrepresentable(format, original[0], grid_size)
         ) from None
     if certify and constraint == "error":
-        certify_answer(search, CERTIFY_TOLERANCE * budget, max(2, max_iterations), progress)
+        search.certify_answer(CERTIFY_TOLERANCE * budget, max(2, max_iterations), progress)
     elif certify:
-        bound_answer(search, ANSWER_RELATIVE_TOLERANCE, progress)
+        search.bound_answer(ANSWER_RELATIVE_TOLERANCE, progress)
     seconds |= search.seconds
 
     best = search.best()

@@ -26,6 +26,7 @@ __all__ = [
     "compact",
     "referenced",
     "refuse_overlap",
+    "weld",
 ]
 
 
@@ -210,6 +211,15 @@ def referenced(faces: np.ndarray, n_vertices: int | None = None) -> np.ndarray:
     used = np.zeros(n_vertices, dtype=bool)
     used[flat] = True
     return np.flatnonzero(used)
+
+
+def weld(mesh: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Point every face at the first of the vertices with its coordinates (STL files are
+    triangle soups: without this no edge is shared); duplicates become unreferenced (the
+    vertices are kept as they are, the same array when nothing merges)."""
+    vertices, faces = mesh
+    welded, merged = _core.weld(vertices, faces)
+    return (vertices, welded) if merged else mesh
 
 
 def all_faces_degenerate(vertices: np.ndarray, faces: np.ndarray) -> bool:

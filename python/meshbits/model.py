@@ -62,6 +62,7 @@ __all__ = [
     "plan_for_size",
     "plan_for_vertices",
     "quantization_error",
+    "size_model_parameters",
     "sphere_vertices",
     "tessellation_error",
     "vertices_for_error",
@@ -125,6 +126,16 @@ def _scalar(array: np.ndarray, name: str) -> float:
     if array.ndim != 0:
         raise TypeError(f"{name} must be a single number here, got an array of shape {array.shape}")
     return float(array)
+
+
+def size_model_parameters(alpha: Any, connectivity_bits: Any) -> tuple[float, float]:
+    """The size model's ``alpha`` (coded bits per coordinate bit, in (0, 1]) and
+    connectivity ``T`` (bits per vertex, >= 0), each checked as a single finite number;
+    raises :class:`MeshbitsError` (a bad value) or ``TypeError`` (an array)."""
+    return (
+        _scalar(_alpha(alpha), "alpha"),
+        _scalar(_nonnegative("connectivity_bits", connectivity_bits), "connectivity_bits"),
+    )
 
 
 def _out(result: np.ndarray) -> float | np.ndarray:
@@ -634,8 +645,7 @@ def _setup(
     k: Any, grid_size: Any, alpha: Any, connectivity_bits: Any, method: str, b0: float | str
 ) -> _Setup:
     _check_method(method)
-    a = _scalar(_alpha(alpha), "alpha")
-    t = _scalar(_nonnegative("connectivity_bits", connectivity_bits), "connectivity_bits")
+    a, t = size_model_parameters(alpha, connectivity_bits)
     return _Setup(
         k=_scalar(_positive("k", k), "k"),
         grid_size=_scalar(_positive("grid_size", grid_size), "grid_size"),

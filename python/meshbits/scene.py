@@ -50,15 +50,7 @@ from .hausdorff import Reference, default_samples
 from .mesh import distinct_positions, draco_drops_note, kept_shape, lost_geometry_note
 from .quantize import cube_grid, precision_bits
 from .results import SAMPLED_ONLY, Progress, ProgressCallback
-from .search import (
-    BASE_FACES,
-    Attributes,
-    Refused,
-    Search,
-    bound_answer,
-    certify_answer,
-    run_search,
-)
+from .search import BASE_FACES, Attributes, Refused, Search
 from .units import length_unit_of
 
 __all__ = [
@@ -912,14 +904,14 @@ def _search_primitive(
         codec=encode,
     )
     try:
-        run_search(search, SCENE_PASSES)
+        search.run(SCENE_PASSES)
     except Refused as err:
         job.kept = f"{codec} could not encode it: {err}"
         return KEPT
     if certify and constraint == "error":
-        certify_answer(search, CERTIFY_TOLERANCE * budget, SCENE_PASSES)
+        search.certify_answer(CERTIFY_TOLERANCE * budget, SCENE_PASSES)
     elif certify:
-        bound_answer(search, ANSWER_RELATIVE_TOLERANCE)
+        search.bound_answer(ANSWER_RELATIVE_TOLERANCE)
     chosen = search.best() or search.closest()
     outcome = (chosen, search.encoded(chosen), search.levels[chosen.level])
     job.skipped = tuple(
