@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import meshbits
-from meshbits.encode import encode, encode_draco, encode_quantized_ply, fit_size_model
+from meshbits.codecs import encode, encode_draco, encode_quantized_ply, fit_size_model
 from meshbits.simplify import closest_level
 
 
@@ -92,7 +92,7 @@ def test_quantized_glb_decodes_in_trimesh_to_the_grid(bits):
     import io
 
     from meshbits import quantize
-    from meshbits.encode import encode_quantized_glb
+    from meshbits.codecs import encode_quantized_glb
 
     mesh = trimesh.load(meshbits.example_mesh_path(), process=False)
     vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
@@ -112,7 +112,7 @@ def test_quantized_glb_decodes_in_trimesh_to_the_grid(bits):
 
 
 def test_quantized_glb_refuses_more_than_16_bits():
-    from meshbits.encode import encode_quantized_glb
+    from meshbits.codecs import encode_quantized_glb
 
     with pytest.raises(ValueError, match="1 to 16"):
         encode_quantized_glb(trimesh.creation.icosphere(1), 17)
@@ -171,7 +171,7 @@ def test_draco_on_a_mesh_of_degenerate_faces_is_refused_in_words(tmp_path):
 )
 def test_fixed_width_size_is_the_encoded_size(fmt, bits, subdivisions):
     """glb and ply sizes from the vertex and face counts alone, against the encoder."""
-    from meshbits.encode import fixed_width_size_bits
+    from meshbits.codecs import fixed_width_size_bits
 
     sphere = trimesh.creation.icosphere(subdivisions)
     encoded = encode((sphere.vertices * 3.7 + 1.0, sphere.faces), bits, format=fmt)

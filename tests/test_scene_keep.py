@@ -17,7 +17,9 @@ from test_scene import _Builder, uv_sphere
 
 import meshbits
 from meshbits.cli import main
-from meshbits.scene import AttributeBits, compress_scene, encode_draco_primitive
+from meshbits.codecs.attributes import AttributeBits
+from meshbits.codecs.draco import encode_draco_primitive
+from meshbits.scene import compress_scene
 
 batch_module = importlib.import_module("meshbits.batch")
 

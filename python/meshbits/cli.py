@@ -36,6 +36,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from . import __version__, model
+from .codecs import fixed_width_size_bits
 from .complexity import shape_complexity
 from .constants import (
     BOUNDS_RELATIVE_TOLERANCE,
@@ -49,7 +50,6 @@ from .constants import (
     MAX_BITS,
     MODEL_MIN_VERTICES,
 )
-from .encode import fixed_width_size_bits
 from .errors import MeshbitsError
 from .files import check_not_an_input, check_writable
 from .formats import example_mesh_path, load_mesh, save_mesh
@@ -961,7 +961,7 @@ def _add_calibrate(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_calibrate(args: argparse.Namespace) -> int:
-    from .encode import encode_draco, fit_size_model
+    from .codecs import encode_draco, fit_size_model
     from .simplify import simplify
 
     if len(set(args.bits)) < 2:

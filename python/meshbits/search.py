@@ -49,8 +49,8 @@ from typing import Any
 import numpy as np
 
 from . import model
+from .codecs import Encoded, encode
 from .constants import MODEL_MIN_BITS, MODEL_MIN_VERTICES
-from .encode import Encoded, encode
 from .errors import MeshbitsError
 from .hausdorff import ClosestPoints, Hausdorff, Reference
 from .mesh import all_faces_degenerate, as_mesh, distinct_positions, referenced
