@@ -75,14 +75,32 @@ def encode_quantized_glb(
     float64, ``origin + step * code``, as the node's JSON numbers give it (the convention of
     every certified bound: stored positions through float64 node transforms).
     """
-    import pygltflib as gl
-
     vertices, faces = as_mesh(mesh)
     bits = check_bits(bits, FORMAT_MAX_BITS["glb"])
     vertices, faces = compact(vertices, faces)
     lo, size = encoding_grid(vertices, origin, grid_size)
     q = quantize(vertices, bits, box=(lo, lo + size))
     codes = np.asarray(q.codes, dtype=np.uint16)
+    step = float(q.step[0])
+    data = _quantized_glb(bits, lo, step, codes, faces)
+    decoded = lo + step * codes.astype(np.float64)
+    return Encoded(
+        "glb",
+        data,
+        bits,
+        decoded.astype(np.float64),
+        faces.astype(np.int64),
+        codes.astype(np.uint32),
+    )
+
+
+def _quantized_glb(
+    bits: int, lo: np.ndarray, step: float, codes: np.ndarray, faces: np.ndarray
+) -> bytes:
+    """The GLB of :func:`encode_quantized_glb`: integer ``codes`` (uint16) at ``bits``,
+    placed by the node at ``translation = lo`` and ``scale = step``, and ``faces``."""
+    import pygltflib as gl
+
     if bits <= 8:
         component, stride = gl.UNSIGNED_BYTE, 4
         packed = np.zeros((len(codes), 4), dtype=np.uint8)
@@ -95,7 +113,6 @@ def encode_quantized_glb(
     else:
         index_component, indices = gl.UNSIGNED_INT, faces.astype("<u4").tobytes()
     index_data, position_data = _padded(indices), packed.tobytes()
-    step = float(q.step[0])
     gltf = gl.GLTF2(
         asset=gl.Asset(generator=f"meshbits, {bits} bits per coordinate"),
         extensionsUsed=["KHR_mesh_quantization"],
@@ -142,16 +159,7 @@ def encode_quantized_glb(
         buffers=[gl.Buffer(byteLength=len(index_data) + len(position_data))],
     )
     gltf.set_binary_blob(index_data + position_data)
-    data = b"".join(gltf.save_to_bytes())
-    decoded = lo + step * codes.astype(np.float64)
-    return Encoded(
-        "glb",
-        data,
-        bits,
-        decoded.astype(np.float64),
-        faces.astype(np.int64),
-        codes.astype(np.uint32),
-    )
+    return b"".join(gltf.save_to_bytes())
 
 
 def fixed_width_size_bits(format: str, bits: int, vertices: float, faces: float) -> float:

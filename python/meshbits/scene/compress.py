@@ -9,15 +9,18 @@ from __future__ import annotations
 import json
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from ..codecs.attributes import NORMAL_TOLERANCE_DEGREES
 from ..codecs.primitive import PrimitiveEncoding
 from ..compress import budget_number
 from ..errors import MeshbitsError, MeshFileError
 from ..files import asset_bytes, check_not_an_input
-from ..formats.gltf.document import Document
+from ..formats.gltf.document import Document, PrimitiveData
 from ..formats.gltf.write import (
     CompressedGeometry,
     document_size,
@@ -37,8 +40,8 @@ from .primitives import (
     plan_jobs,
     world_box,
 )
-from .report import SceneResult, budget_text, job_report, kept_report, scene_result
-from .shared_grid import final_encodings
+from .report import PrimitiveReport, SceneResult, budget_text, job_report, kept_report, scene_result
+from .shared_grid import Encodings, final_encodings
 from .split import RunAt, size_one, split_size
 
 __all__ = ["CODECS", "WORLD_ROUNDING", "compress_scene", "scene_document"]
@@ -108,10 +111,59 @@ def compress_scene(
     """
     start = time.perf_counter()
     constraint, budget = _check_scene_arguments(error, size, codec, normal_tolerance, output)
-    if output is not None and not isinstance(source, Document):
-        check_not_an_input(output, source)
-    start = time.perf_counter()
-    constraint, budget = _check_scene_arguments(error, size, codec, normal_tolerance, output)
+    scene = _plan(source, output, normal_tolerance)
+    if constraint == "error" and relative:
+        budget *= scene.world_size
+    jobs = scene.jobs
+    run_at = _run_at(jobs, codec, seed, certify, scene.margin, scene.unit, progress)
+    if not jobs:
+        outcomes, target_error = [], budget if constraint == "error" else 0.0
+    elif constraint == "error":
+        outcomes, target_error = run_at(budget), budget
+    else:
+        outcomes, target_error = _size_search(
+            scene.document, jobs, budget, codec, seed, certify, run_at, scene.world_size
+        )
+    encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
+    files, size_bytes = _write(
+        scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes
+    )
+    return scene_result(
+        constraint,
+        budget,
+        certify,
+        codec,
+        _reports(scene, outcomes, encodings, target_error, certify, constraint),
+        size_bytes,
+        scene.input_bytes,
+        files,
+        scene.unit,
+        start,
+        scene.document.notes,
+        budget_text(error, size, relative),
+        [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(scene.kept),
+    )
+
+
+@dataclass
+class _Planned:
+    """A scene read and planned: its document, the input's bytes (0 for a document given
+    in memory), the unit of its lengths, its meshes' instances, the jobs to compress and
+    the primitives kept as they are, the largest side of its world box and the world
+    rounding margin (world units)."""
+
+    document: Document
+    input_bytes: int
+    unit: str
+    instances: dict[int, list[tuple[int, np.ndarray]]]
+    jobs: list[Job]
+    kept: list[PrimitiveData]
+    world_size: float
+    margin: float
+
+
+def _plan(source: Any, output: str | Path | None, normal_tolerance: float) -> _Planned:
+    """Read the scene, group its primitives into jobs and place them in frames."""
     document, input_bytes = _read_source(source, output)
     # A glTF's lengths are meters; another file's are its own coordinates, as its JSON
     # report says (``length_unit``).
@@ -128,54 +180,39 @@ def compress_scene(
     # transforms) carry float64 rounding that the measurement in each mesh's frame does
     # not: every bound is raised by it.
     margin = WORLD_ROUNDING * reach
-    if constraint == "error" and relative:
-        budget *= world_size
-    run_at = _run_at(jobs, codec, seed, certify, margin, unit, progress)
-    if not jobs:
-        outcomes, target_error = [], budget if constraint == "error" else 0.0
-    elif constraint == "error":
-        outcomes, target_error = run_at(budget), budget
-    else:
-        outcomes, target_error = _size_search(
-            document, jobs, budget, codec, seed, certify, run_at, world_size
-        )
-    encodings, measured, uppers = final_encodings(
-        jobs, outcomes, codec, certify, target_error, margin
-    )
-    files, size_bytes = _write(document, jobs, encodings, codec, source, output, input_bytes)
+    return _Planned(document, input_bytes, unit, instances, jobs, kept, world_size, margin)
+
+
+def _reports(
+    scene: _Planned,
+    outcomes: list[Outcome],
+    encodings: Encodings,
+    target_error: float,
+    certify: bool,
+    constraint: str,
+) -> list[PrimitiveReport]:
+    """A report per job (its first primitive's), then one per primitive kept."""
     reports = [
         job_report(
-            document,
+            scene.document,
             job,
             outcome,
             encoding,
             error,
             upper,
             target_error,
-            margin,
+            scene.margin,
             certify,
             constraint,
         )
         for job, outcome, encoding, error, upper in zip(
-            jobs, outcomes, encodings, measured, uppers, strict=True
+            scene.jobs, outcomes, *encodings, strict=True
         )
     ]
-    reports += [kept_report(document, data, instances, certify, margin) for data in kept]
-    return scene_result(
-        constraint,
-        budget,
-        certify,
-        codec,
-        reports,
-        size_bytes,
-        input_bytes,
-        files,
-        unit,
-        start,
-        document.notes,
-        budget_text(error, size, relative),
-        [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(kept),
-    )
+    return reports + [
+        kept_report(scene.document, data, scene.instances, certify, scene.margin)
+        for data in scene.kept
+    ]
 
 
 def _read_source(source: Any, output: str | Path | None) -> tuple[Document, int]:
