@@ -100,16 +100,16 @@ def scene_info(path: str | Path) -> dict[str, Any]:
     sizes = _bytes_by_part(j, geometry_views)
     images = []
     for i, image in enumerate(j.get("images", [])):
-        data, mime = document.image_bytes(i)
+        image_data, mime = document.image_bytes(i)
         if image.get("bufferView") is None:
-            sizes["images"] += len(data)
+            sizes["images"] += len(image_data)
         images.append(
             {
                 "image": i,
                 "name": image.get("name"),
                 "mimeType": mime,
-                "bytes": len(data),
-                "size": image_size(data),
+                "bytes": len(image_data),
+                "size": image_size(image_data),
             }
         )
     return {
@@ -187,9 +187,9 @@ def _primitive_info(
     attributes = {}
     for name, acc in prim.get("attributes", {}).items():
         spec = j["accessors"][acc]
-        attributes[name] = (
-            f"{spec['type']} {np.dtype(COMPONENT_DTYPES[spec['componentType']]).name}"
-            + (" normalized" if spec.get("normalized") else "")
+        dtype: Any = COMPONENT_DTYPES[spec["componentType"]]
+        attributes[name] = f"{spec['type']} {np.dtype(dtype).name}" + (
+            " normalized" if spec.get("normalized") else ""
         )
         exact = document.exact_positions.get(acc) if name == "POSITION" else None
         if exact is not None and not np.array_equal(

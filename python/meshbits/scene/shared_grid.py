@@ -87,8 +87,9 @@ class _Measured:
 
     def all_within(self, members: list[int]) -> bool:
         """Whether every member is certified within its budget (or none is asked)."""
-        return self.budgets is None or all(
-            self.uppers[i] is not None and self.uppers[i] <= self.budgets[i] for i in members
+        budgets = self.budgets
+        return budgets is None or all(
+            (upper := self.uppers[i]) is not None and upper <= budgets[i] for i in members
         )
 
 
