@@ -12,6 +12,8 @@ import numpy as np
 
 from ..constants import FORMAT_MAX_BITS
 from ..errors import MeshbitsError
+from ..formats.gltf.spec import COMPONENT_TYPES
+from ..formats.gltf.write import glb_bytes
 from ..mesh import MeshLike, as_mesh, compact
 from ..quantize import quantize
 from .encoded import Encoded, check_bits, encoding_grid
@@ -97,69 +99,66 @@ def encode_quantized_glb(
 def _quantized_glb(
     bits: int, lo: np.ndarray, step: float, codes: np.ndarray, faces: np.ndarray
 ) -> bytes:
-    """The GLB of :func:`encode_quantized_glb`: integer ``codes`` (uint16) at ``bits``,
-    placed by the node at ``translation = lo`` and ``scale = step``, and ``faces``."""
-    import pygltflib as gl
-
+    """The GLB of :func:`encode_quantized_glb` (through the one glTF writer,
+    :func:`meshbits.formats.gltf.write.glb_bytes`): integer ``codes`` (uint16) at
+    ``bits``, placed by the node at ``translation = lo`` and ``scale = step``, and
+    ``faces``. Its JSON is pygltflib's, which wrote these files before (the same bytes)."""
     if bits <= 8:
-        component, stride = gl.UNSIGNED_BYTE, 4
+        component, stride = COMPONENT_TYPES[np.dtype(np.uint8)], 4
         packed = np.zeros((len(codes), 4), dtype=np.uint8)
     else:
-        component, stride = gl.UNSIGNED_SHORT, 8
+        component, stride = COMPONENT_TYPES[np.dtype(np.uint16)], 8
         packed = np.zeros((len(codes), 4), dtype="<u2")
     packed[:, :3] = codes
     if len(codes) < 65536:
-        index_component, indices = gl.UNSIGNED_SHORT, faces.astype("<u2").tobytes()
+        index_component, indices = COMPONENT_TYPES[np.dtype(np.uint16)], faces.astype("<u2")
     else:
-        index_component, indices = gl.UNSIGNED_INT, faces.astype("<u4").tobytes()
-    index_data, position_data = _padded(indices), packed.tobytes()
-    gltf = gl.GLTF2(
-        asset=gl.Asset(generator=f"meshbits, {bits} bits per coordinate"),
-        extensionsUsed=["KHR_mesh_quantization"],
-        extensionsRequired=["KHR_mesh_quantization"],
-        scene=0,
-        scenes=[gl.Scene(nodes=[0])],
-        nodes=[gl.Node(mesh=0, translation=[float(x) for x in lo], scale=[step, step, step])],
-        meshes=[
-            gl.Mesh(primitives=[gl.Primitive(attributes=gl.Attributes(POSITION=1), indices=0)])
+        index_component, indices = COMPONENT_TYPES[np.dtype(np.uint32)], faces.astype("<u4")
+    index_data, position_data = _padded(indices.tobytes()), packed.tobytes()
+    accessors = [
+        (index_component, int(faces.size), "SCALAR", [int(faces.max())], [int(faces.min())]),
+        (
+            component,
+            len(codes),
+            "VEC3",
+            [int(x) for x in codes.max(axis=0)],
+            [int(x) for x in codes.min(axis=0)],
+        ),
+    ]
+    document = {
+        "accessors": [
+            {
+                "bufferView": view,
+                "byteOffset": 0,
+                "componentType": component_type,
+                "normalized": False,
+                "count": count,
+                "type": kind,
+                "max": high,
+                "min": low,
+            }
+            for view, (component_type, count, kind, high, low) in enumerate(accessors)
         ],
-        accessors=[
-            gl.Accessor(
-                bufferView=0,
-                componentType=index_component,
-                count=faces.size,
-                type=gl.SCALAR,
-                min=[int(faces.min())],
-                max=[int(faces.max())],
-            ),
-            gl.Accessor(
-                bufferView=1,
-                componentType=component,
-                count=len(codes),
-                type=gl.VEC3,
-                min=[int(x) for x in codes.min(axis=0)],
-                max=[int(x) for x in codes.max(axis=0)],
-            ),
+        "asset": {"generator": f"meshbits, {bits} bits per coordinate", "version": "2.0"},
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": indices.nbytes, "target": 34963},
+            {
+                "buffer": 0,
+                "byteOffset": len(index_data),
+                "byteLength": len(position_data),
+                "byteStride": stride,
+                "target": 34962,
+            },
         ],
-        bufferViews=[
-            gl.BufferView(
-                buffer=0,
-                byteOffset=0,
-                byteLength=len(indices),
-                target=gl.ELEMENT_ARRAY_BUFFER,
-            ),
-            gl.BufferView(
-                buffer=0,
-                byteOffset=len(index_data),
-                byteLength=len(position_data),
-                byteStride=stride,
-                target=gl.ARRAY_BUFFER,
-            ),
-        ],
-        buffers=[gl.Buffer(byteLength=len(index_data) + len(position_data))],
-    )
-    gltf.set_binary_blob(index_data + position_data)
-    return b"".join(gltf.save_to_bytes())
+        "buffers": [{"byteLength": len(index_data) + len(position_data)}],
+        "extensionsUsed": ["KHR_mesh_quantization"],
+        "extensionsRequired": ["KHR_mesh_quantization"],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0, "mode": 4}]}],
+        "nodes": [{"mesh": 0, "translation": [float(x) for x in lo], "scale": [step] * 3}],
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+    }
+    return glb_bytes(document, index_data + position_data)
 
 
 def fixed_width_size_bits(format: str, bits: int, vertices: float, faces: float) -> float:

@@ -4,7 +4,9 @@ A scene's document is rebuilt around its compressed primitives
 (:func:`rebuild_document`: Draco or meshopt data, frames folded into the nodes, everything
 else copied), a mesh becomes a document through trimesh's glTF export
 (:func:`mesh_document`), and either is written by :func:`write_document`, as GLB or as a
-``.gltf`` with its buffer beside it named after it. Also where to put the origin of
+``.gltf`` with its buffer beside it named after it; the GLB container is
+:func:`glb_bytes`, which the quantized GLB of :mod:`meshbits.codecs.fixed_width` also
+uses. Also where to put the origin of
 positions stored in float32 (:func:`frame_centre`) and short exact JSON numbers.
 """
 
