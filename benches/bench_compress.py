@@ -21,7 +21,7 @@ import trimesh
 from _shared import SHARED as SHARED_ROOT
 
 import meshbits
-from meshbits.encode import encode
+from meshbits.codecs import encode
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = SHARED_ROOT / "meshes"

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from meshbits import example_mesh_path, load_mesh
-from meshbits.encode import encode_draco, fit_size_model
+from meshbits.codecs import encode_draco, fit_size_model
 from meshbits.simplify import simplify
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "data"

@@ -47,9 +47,10 @@ import trimesh
 from _shared import SHARED, import_refs
 
 import meshbits
+from meshbits.codecs import encode_draco
 from meshbits.compress import MIN_SAMPLES
 from meshbits.constants import CERTIFY_TOLERANCE
-from meshbits.encode import decode_draco, encode_draco
+from meshbits.formats.drc import decode_draco
 from meshbits.hausdorff import default_samples
 from meshbits.quantize import cube_grid
 

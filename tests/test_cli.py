@@ -459,7 +459,7 @@ def test_an_empty_glb_is_called_empty_by_every_command(tmp_path, capsys, command
 def test_info_and_a_batch_folder_read_a_draco_file(tmp_path, capsys):
     """``info out.drc`` said trimesh does not support 'drc', and a batch over a folder
     holding only .drc files found no mesh files."""
-    from meshbits.encode import encode_draco
+    from meshbits.codecs import encode_draco
     from meshbits.formats import example_mesh_path, load_mesh
 
     spot = load_mesh(example_mesh_path())

@@ -13,8 +13,9 @@ from conftest import load
 
 import meshbits
 from meshbits.cli import main
+from meshbits.codecs import encode, encode_draco
 from meshbits.compress import compress
-from meshbits.encode import decode_draco, encode, encode_draco
+from meshbits.formats.drc import decode_draco
 from meshbits.hausdorff import default_samples
 from meshbits.simplify import simplify
 

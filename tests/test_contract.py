@@ -16,7 +16,7 @@ import trimesh
 import meshbits
 from meshbits import cli
 from meshbits.cli import main
-from meshbits.encode import encode_draco
+from meshbits.codecs import encode_draco
 from meshbits.files import write_atomic
 
 DATA = Path(__file__).parent / "data"

@@ -236,7 +236,7 @@ def test_a_draco_file_reads_back_as_draco_decodes_it(tmp_path):
     and faces as DracoPy gives them), plain or gzipped; a damaged one is refused."""
     import DracoPy
 
-    from meshbits.encode import encode_draco
+    from meshbits.codecs import encode_draco
 
     spot = meshbits.load_mesh(meshbits.example_mesh_path())
     data = encode_draco(spot, 11).data

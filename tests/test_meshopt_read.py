@@ -21,9 +21,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import meshbits
-from meshbits import _core, scene
+from meshbits import _core
 from meshbits.cli import main
 from meshbits.formats import example_mesh_path, load_document
+from meshbits.formats.gltf.write import write_document
+from meshbits.scene import compress as scene_compress
 
 meshopt = pytest.importorskip("meshopt")
 
@@ -208,7 +210,7 @@ def written(tmp_path_factory):
     folder = tmp_path_factory.mktemp("meshopt")
     source = textured_scene(folder / "scene.glb")
     calls = []
-    original = scene._rebuild
+    original = scene_compress.scene_document
 
     def recording(document, jobs, encodings, codec):
         calls.append((document, jobs, encodings))
@@ -216,14 +218,14 @@ def written(tmp_path_factory):
 
     out = folder / "scene_meshopt.glb"
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(scene, "_rebuild", recording)
+        patch.setattr(scene_compress, "scene_document", recording)
         result = meshbits.compress_scene(
             source, error=ERROR, relative=True, codec="meshopt", output=out
         )
     assert result.met and len(calls) == 1
     document, jobs, encodings = calls[0]
     gltf = folder / "scene_meshopt.gltf"
-    scene._emit(*original(document, jobs, encodings, "meshopt"), gltf)
+    write_document(*original(document, jobs, encodings, "meshopt"), gltf)
     return {
         "source": source,
         "glb": out,

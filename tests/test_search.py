@@ -11,7 +11,7 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 
 import meshbits
-from meshbits.encode import encode_draco
+from meshbits.codecs import encode_draco
 from meshbits.search import (
     COMBINE_DELTA,
     QUANTIZATION_FACTOR,
@@ -370,7 +370,7 @@ def test_the_welded_original_counts_the_vertices_its_faces_use():
 def test_candidates_the_encoder_refuses_are_skipped_and_counted():
     """A codec that refuses some B (Draco refused textured meshes at 18 to 21 bits): the
     search goes on without them, and says how many it skipped."""
-    from meshbits.encode import encode
+    from meshbits.codecs import encode
     from meshbits.errors import MeshbitsError
 
     refused_bits = set(range(8, 13))

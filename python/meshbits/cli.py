@@ -36,6 +36,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from . import __version__, model
+from .codecs import fixed_width_size_bits
 from .complexity import shape_complexity
 from .constants import (
     BOUNDS_RELATIVE_TOLERANCE,
@@ -49,7 +50,6 @@ from .constants import (
     MAX_BITS,
     MODEL_MIN_VERTICES,
 )
-from .encode import fixed_width_size_bits
 from .errors import MeshbitsError
 from .files import check_not_an_input, check_writable
 from .formats import example_mesh_path, load_mesh, save_mesh
@@ -961,7 +961,7 @@ def _add_calibrate(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_calibrate(args: argparse.Namespace) -> int:
-    from .encode import encode_draco, fit_size_model
+    from .codecs import encode_draco, fit_size_model
     from .simplify import simplify
 
     if len(set(args.bits)) < 2:
@@ -1225,7 +1225,7 @@ def _size_units(file_size: float, whole: float | None, budget_unit: str | None) 
 def _plan_fixed_width(args: argparse.Namespace, report: dict[str, Any]) -> int:
     """``plan --format glb|ply``: positions stored in fixed-width fields cost the same at
     every ``B`` up to the format's most, so ``B`` is that most and the budget buys ``V``
-    (sizes from :func:`meshbits.encode.fixed_width_size_bits`, errors from Eq. 2 and 10)."""
+    (sizes from :func:`meshbits.codecs.fixed_width_size_bits`, errors from Eq. 2 and 10)."""
     k, grid_size, fmt = report["k"], report["grid_size"], args.format
     bits = FORMAT_MAX_BITS[fmt]
     # A triangle soup (STL) counts each vertex once per face: its welded vertices are the

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from . import model
+from .codecs.draco import draco_max_bits
 from .complexity import ShapeComplexity, shape_complexity
 from .constants import (
     ANSWER_RELATIVE_TOLERANCE,
@@ -35,7 +36,6 @@ from .constants import (
     FLAT_K,
     FORMAT_MAX_BITS,
 )
-from .encode import draco_max_bits
 from .errors import MeshbitsError
 from .files import write_atomic
 from .formats.gltf.write import frame_centre
@@ -87,7 +87,7 @@ class CompressResult(ArrayResult):
     codes : ndarray
         ``(n, 3)`` integer grid codes of the output vertices (origin :attr:`origin`,
         step :attr:`step`) as the file stores them, not recomputed from float positions
-        (see :func:`meshbits.encode.draco_codes` for Draco's).
+        (see :func:`meshbits.codecs.draco_codes` for Draco's).
     origin : ndarray
         Grid origin, ``(3,)`` (length): the min corner of the original's bounding box
         (widened if the simplified mesh pokes out of it).

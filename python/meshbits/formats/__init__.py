@@ -3,8 +3,8 @@
 :mod:`.open` is the dispatcher (:func:`load_mesh`, :func:`load_document`,
 :func:`save_mesh`); each format has its own module (:mod:`.ply`, :mod:`.obj` for OBJ and
 OFF, :mod:`.stl`, :mod:`.drc`, :mod:`.gltf`), and :mod:`.sniff` holds what they share
-before a parser reads a file. Formats import leaves (errors, files, mesh, the codecs),
-never the dispatcher.
+before a parser reads a file. Formats import leaves (errors, files, mesh, _core), never
+the dispatcher, nor the codecs (which import formats: glTF's constants, Draco's decoder).
 """
 
 from __future__ import annotations

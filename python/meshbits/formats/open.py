@@ -30,7 +30,7 @@ from . import obj, ply, stl
 from .drc import read_drc
 from .gltf.document import Document
 from .gltf.read import check_glb_header, document_from_trimesh, read_gltf
-from .gltf.write import write_gltf
+from .gltf.write import write_mesh
 from .sniff import HeaderCheck, check_mapped, explain, file_type_of, gunzip
 
 __all__ = [
@@ -232,8 +232,8 @@ def save_mesh(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> Path
     path = Path(path)
     mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     suffix = path.suffix.lower().lstrip(".")
-    if suffix == "gltf":
-        return write_gltf(path, mesh)
+    if suffix in ("glb", "gltf"):
+        return write_mesh(path, mesh)
     if suffix in ("obj", "off"):
         return write_atomic(path, obj.text_mesh(suffix, mesh.vertices, mesh.faces))
     data = mesh.export(file_type=suffix)

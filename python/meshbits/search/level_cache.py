@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from .. import model
+from ..codecs import Encoded, encode
 from ..constants import MODEL_MIN_VERTICES
-from ..encode import Encoded, encode
 from ..errors import MeshbitsError
 from ..hausdorff import Reference
 from ..mesh import all_faces_degenerate, as_mesh, referenced

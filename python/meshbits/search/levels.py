@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..encode import Encoded
+from ..codecs import Encoded
 from ..hausdorff import ClosestPoints
 from ..mesh import referenced
 from ..simplify import simplify

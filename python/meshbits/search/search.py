@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from .. import model
-from ..encode import Encoded
+from ..codecs import Encoded
 from ..hausdorff import Reference
 from ..mesh import distinct_positions
 from ..results import Progress, ProgressCallback

@@ -1,21 +1,45 @@
-"""Writing glTF files: a mesh as a text glTF with its buffer beside it, and where to put
-the origin of positions stored in float32.
+"""Writing glTF: the one writer of every glTF meshbits writes.
 
-This is the writer of ``save_mesh``; the scene commands still write their documents with
-the writer in :mod:`meshbits.scene`, which a later step moves here.
+A scene's document is rebuilt around its compressed primitives
+(:func:`rebuild_document`: Draco or meshopt data, frames folded into the nodes, everything
+else copied), a mesh becomes a document through trimesh's glTF export
+(:func:`mesh_document`), and either is written by :func:`write_document`, as GLB or as a
+``.gltf`` with its buffer beside it named after it; the GLB container is
+:func:`glb_bytes`, which the quantized GLB of :mod:`meshbits.codecs.fixed_width` also
+uses. Also where to put the origin of
+positions stored in float32 (:func:`frame_centre`) and short exact JSON numbers.
 """
 
 from __future__ import annotations
 
+import copy
 import json
 import math
+import struct
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 
 from ...files import write_atomic
+from .document import Document
+from .spec import MESHOPT_EXTENSIONS
 
-__all__ = ["FRAME_DISTANCE", "frame_centre", "gltf_files", "json_number", "write_gltf"]
+__all__ = [
+    "FRAME_DISTANCE",
+    "CompressedGeometry",
+    "EncodedGeometry",
+    "document_size",
+    "frame_centre",
+    "glb_bytes",
+    "image_key",
+    "json_number",
+    "mesh_document",
+    "rebuild_document",
+    "write_document",
+    "write_mesh",
+]
 
 #: A mesh whose box centre is farther from the origin than this many times its largest
 #: side is stored relative to that centre (:func:`frame_centre`): there float32 rounds a
@@ -50,30 +74,441 @@ def json_number(value: float) -> float | int:
     return value
 
 
-def gltf_files(mesh: object, path: Path) -> dict[str, bytes]:
-    """A trimesh mesh as a text glTF and its binary buffers, by file name: the buffers
-    named after the output (``mesh.gltf`` -> ``mesh.bin``), so that two outputs in one
-    folder never share one."""
+# --- a mesh ---------------------------------------------------------------------------------
+
+
+def mesh_document(mesh: object) -> tuple[dict[str, Any], bytes]:
+    """A trimesh mesh as a glTF document (JSON) and its one buffer's bytes, through
+    trimesh's glTF export."""
     # trimesh is imported on first use: it takes longer to import than meshbits.
     from trimesh.exchange.gltf import export_gltf
 
     files = export_gltf(mesh, merge_buffers=True)
     document = json.loads(files.pop("model.gltf"))
-    renamed = {}
     buffers = document.get("buffers", [])
-    for index, buffer in enumerate(buffers):
-        name = f"{path.stem}.bin" if len(buffers) == 1 else f"{path.stem}_{index}.bin"
-        renamed[name] = files.pop(buffer["uri"])
-        buffer["uri"] = name
-    renamed[path.name] = json.dumps(document).encode()
-    return renamed
+    binary = files.pop(buffers[0].pop("uri")) if buffers else b""
+    return document, binary
 
 
-def write_gltf(path: Path, mesh: object) -> Path:
-    """Write a trimesh mesh as ``path`` (a ``.gltf``) and its buffers beside it, each
-    atomically (:func:`gltf_files`); the buffers are written first."""
-    files = gltf_files(mesh, path)
-    document = files.pop(path.name)
-    for name, data in files.items():
-        write_atomic(path.with_name(name), data)
-    return write_atomic(path, document)
+def write_mesh(path: Path, mesh: object) -> Path:
+    """Write a trimesh mesh as ``path``, a ``.glb``, or a ``.gltf`` with its buffer beside
+    it (:func:`mesh_document`, :func:`write_document`); the buffer is written first."""
+    write_document(*mesh_document(mesh), path)
+    return path
+
+
+# --- a scene around its compressed primitives ---------------------------------------------
+
+
+class EncodedGeometry(Protocol):
+    """What the writer reads of a compressed primitive
+    (:class:`meshbits.codecs.primitive.PrimitiveEncoding` is one)."""
+
+    #: ``name -> accessor fields`` (count, componentType, type...), and ``"indices"``.
+    accessors: dict[str, dict[str, Any]]
+    #: The ``KHR_draco_mesh_compression`` buffer (None with meshopt), and its attribute
+    #: ids by glTF name.
+    draco: bytes | None
+    draco_ids: dict[str, int]
+    #: meshopt: per stream ``name``, ``data`` (compressed), ``raw`` (the fallback's bytes),
+    #: ``stride``, ``count``, ``mode`` and ``filter``.
+    streams: list[dict[str, Any]]
+    #: meshopt's integer positions: ``(origin, step)`` placing them in mesh units.
+    dequantize: tuple[np.ndarray, float] | None
+
+
+@dataclass(frozen=True)
+class CompressedGeometry:
+    """One compressed geometry to write, and every primitive that shows it.
+
+    Attributes
+    ----------
+    targets : list of (mesh, primitive)
+        The primitives that read it (they shared their accessors in the input).
+    encoding : EncodedGeometry
+        Its compressed data and accessors.
+    offset : ndarray, shape (3,)
+        What its positions were moved by before encoding (mesh units; zero when they were
+        not): the nodes that show its meshes put it back.
+    """
+
+    targets: list[tuple[int, int]]
+    encoding: EncodedGeometry
+    offset: np.ndarray
+
+
+class _Blob:
+    """A buffer being written: bytes appended at 4-byte alignment."""
+
+    def __init__(self) -> None:
+        self.parts: list[bytes] = []
+        self.length = 0
+
+    def add(self, data: bytes) -> int:
+        """Append ``data`` (after padding to 4 bytes); returns its offset."""
+        pad = (-self.length) % 4
+        if pad:
+            self.parts.append(b"\0" * pad)
+            self.length += pad
+        offset = self.length
+        self.parts.append(bytes(data))
+        self.length += len(data)
+        return offset
+
+    def bytes(self) -> bytes:
+        """The buffer, padded to 4 bytes."""
+        return b"".join(self.parts) + b"\0" * ((-self.length) % 4)
+
+
+def image_key(document: Document, index: int) -> tuple[str, Any]:
+    """What an image's data is: its bufferView or its URI (images sharing it share it)."""
+    image = document.json["images"][index]
+    if image.get("bufferView") is not None:
+        return ("view", image["bufferView"])
+    return ("uri", image.get("uri"))
+
+
+def rebuild_document(
+    document: Document, geometries: list[CompressedGeometry], codec: str
+) -> tuple[dict[str, Any], bytes]:
+    """The document (JSON) and its binary buffer with the compressed ``geometries``
+    (``codec``: ``"draco"`` or ``"meshopt"``): each one's data once, every primitive of its
+    ``targets`` pointing at it, frames folded into the nodes; every other primitive, and
+    everything else, copied (images into the buffer)."""
+    rebuilt = _Rebuilt(document, {t for geometry in geometries for t in geometry.targets})
+    rebuilt.copy_kept_data()
+    frames: dict[int, tuple[np.ndarray, float]] = {}
+    for geometry in geometries:
+        rebuilt.add_geometry(geometry, codec, frames)
+    out = rebuilt.out
+    if frames:
+        _apply_frames(out, document, frames)
+    out["accessors"] = rebuilt.accessors
+    out["bufferViews"] = rebuilt.views
+    _set_extensions(out, codec, bool(geometries))
+    data = rebuilt.blob.bytes()
+    buffers: list[dict[str, Any]] = [{"byteLength": len(data)}]
+    if codec == "meshopt" and geometries:
+        fallback = rebuilt.fallback.length
+        buffers.append(
+            {
+                "byteLength": fallback + (-fallback) % 4,
+                "extensions": {"EXT_meshopt_compression": {"fallback": True}},
+            }
+        )
+    out["buffers"] = buffers
+    out.setdefault("asset", {})["generator"] = "meshbits"
+    return out, data
+
+
+class _Rebuilt:
+    """A document being rebuilt: its JSON (``out``), its new bufferViews and accessors,
+    the buffer (``blob``) and meshopt's fallback buffer, and where each input bufferView
+    and accessor went."""
+
+    def __init__(self, document: Document, replaced: set[tuple[int, int]]) -> None:
+        self.document, self.replaced = document, replaced
+        self.out = copy.deepcopy(document.json)
+        self.blob, self.fallback = _Blob(), _Blob()
+        self.views: list[dict[str, Any]] = []
+        self.accessors: list[dict[str, Any]] = []
+        self.view_map: dict[int, int] = {}
+        self.accessor_map: dict[int, int] = {}
+
+    def copy_view(self, old: int) -> int:
+        """The input's bufferView ``old``, its bytes copied into the buffer (once)."""
+        if old not in self.view_map:
+            spec = {
+                k: v
+                for k, v in self.document.json["bufferViews"][old].items()
+                if k not in ("buffer", "byteOffset", "extensions")
+            }
+            spec["buffer"] = 0
+            spec["byteOffset"] = self.blob.add(bytes(self.document.view_bytes(old)))
+            self.views.append(spec)
+            self.view_map[old] = len(self.views) - 1
+        return self.view_map[old]
+
+    def copy_accessor(self, old: int) -> int:
+        """The input's accessor ``old``, with its bufferViews (sparse ones too), once."""
+        if old not in self.accessor_map:
+            spec = copy.deepcopy(self.document.json["accessors"][old])
+            if spec.get("bufferView") is not None:
+                spec["bufferView"] = self.copy_view(spec["bufferView"])
+            if spec.get("sparse"):
+                for part in ("indices", "values"):
+                    spec["sparse"][part]["bufferView"] = self.copy_view(
+                        spec["sparse"][part]["bufferView"]
+                    )
+            self.accessors.append(spec)
+            self.accessor_map[old] = len(self.accessors) - 1
+        return self.accessor_map[old]
+
+    def copy_kept_data(self) -> None:
+        """Copy what is not replaced, with its data as it was: the primitives not
+        compressed, skins' matrices, animations, instancing, and every image (images that
+        share their data, one bufferView or one URI, keep sharing it)."""
+        for m, mesh in enumerate(self.out.get("meshes", [])):
+            for p, prim in enumerate(mesh.get("primitives", [])):
+                if (m, p) not in self.replaced:
+                    self._copy_primitive(prim, self.document.json["meshes"][m]["primitives"][p])
+        for skin in self.out.get("skins", []):
+            if skin.get("inverseBindMatrices") is not None:
+                skin["inverseBindMatrices"] = self.copy_accessor(skin["inverseBindMatrices"])
+        for animation in self.out.get("animations", []):
+            for sampler in animation.get("samplers", []):
+                sampler["input"] = self.copy_accessor(sampler["input"])
+                sampler["output"] = self.copy_accessor(sampler["output"])
+        for node in self.out.get("nodes", []):
+            instancing = (node.get("extensions") or {}).get("EXT_mesh_gpu_instancing")
+            if instancing:
+                instancing["attributes"] = {
+                    k: self.copy_accessor(v) for k, v in instancing.get("attributes", {}).items()
+                }
+        image_views: dict[Any, int] = {}
+        for i, image in enumerate(self.out.get("images", [])):
+            data, mime = self.document.image_bytes(i)
+            key = image_key(self.document, i)
+            if key not in image_views:
+                self.views.append(
+                    {"buffer": 0, "byteOffset": self.blob.add(data), "byteLength": len(data)}
+                )
+                image_views[key] = len(self.views) - 1
+            image.pop("uri", None)
+            image["bufferView"] = image_views[key]
+            if mime:
+                image["mimeType"] = mime
+
+    def _copy_primitive(self, prim: dict[str, Any], source: dict[str, Any]) -> None:
+        """A primitive kept as it was: its accessors (and morph targets, Draco data)."""
+        prim["attributes"] = {
+            k: self.copy_accessor(v) for k, v in source.get("attributes", {}).items()
+        }
+        if source.get("indices") is not None:
+            prim["indices"] = self.copy_accessor(source["indices"])
+        if source.get("targets"):
+            prim["targets"] = [
+                {k: self.copy_accessor(v) for k, v in t.items()} for t in source["targets"]
+            ]
+        draco = (source.get("extensions") or {}).get("KHR_draco_mesh_compression")
+        if draco is not None:
+            prim.setdefault("extensions", {})["KHR_draco_mesh_compression"] = {
+                **draco,
+                "bufferView": self.copy_view(draco["bufferView"]),
+            }
+
+    def add_geometry(
+        self,
+        geometry: CompressedGeometry,
+        codec: str,
+        frames: dict[int, tuple[np.ndarray, float]],
+    ) -> None:
+        """A compressed geometry's accessors and data, every primitive of its targets
+        pointed at them, and its meshes' frames (``mesh -> (origin, step)``) recorded."""
+        encoding = geometry.encoding
+        attributes = {}
+        for name, spec in encoding.accessors.items():
+            if name == "indices":
+                continue
+            self.accessors.append(dict(spec))
+            attributes[name] = len(self.accessors) - 1
+        self.accessors.append(dict(encoding.accessors["indices"]))
+        indices = len(self.accessors) - 1
+        draco = None
+        if codec == "draco":
+            assert encoding.draco is not None
+            self.views.append(
+                {
+                    "buffer": 0,
+                    "byteOffset": self.blob.add(encoding.draco),
+                    "byteLength": len(encoding.draco),
+                }
+            )
+            draco = {
+                "bufferView": len(self.views) - 1,
+                "attributes": {name: encoding.draco_ids[name] for name in attributes},
+            }
+        else:
+            for stream in encoding.streams:
+                self.views.append(self._meshopt_view(stream))
+                key = indices if stream["name"] == "indices" else attributes[stream["name"]]
+                self.accessors[key]["bufferView"] = len(self.views) - 1
+        for mesh, number in geometry.targets:
+            _point_at(self.out["meshes"][mesh]["primitives"][number], attributes, indices, draco)
+            if encoding.dequantize is not None:
+                origin, step = encoding.dequantize
+                frames[mesh] = (geometry.offset + origin, step)
+            elif geometry.offset.any():
+                frames[mesh] = (geometry.offset, 1.0)
+
+    def _meshopt_view(self, stream: dict[str, Any]) -> dict[str, Any]:
+        """A meshopt stream's bufferView: its raw bytes in the fallback buffer, its
+        compressed bytes in the buffer."""
+        target = 34963 if stream["mode"] == "TRIANGLES" else 34962
+        view = {
+            "buffer": 1,
+            "byteOffset": self.fallback.add(stream["raw"]),
+            "byteLength": len(stream["raw"]),
+            "target": target,
+            "extensions": {
+                "EXT_meshopt_compression": {
+                    "buffer": 0,
+                    "byteOffset": self.blob.add(stream["data"]),
+                    "byteLength": len(stream["data"]),
+                    "byteStride": stream["stride"],
+                    "count": stream["count"],
+                    "mode": stream["mode"],
+                    **({"filter": stream["filter"]} if stream["filter"] != "NONE" else {}),
+                }
+            },
+        }
+        if stream["mode"] == "ATTRIBUTES":
+            view["byteStride"] = stream["stride"]
+        return view
+
+
+def _set_extensions(out: dict[str, Any], codec: str, compressed: bool) -> None:
+    """The rebuilt document's extensions used and required: Draco's kept while a copied
+    primitive still uses it, meshopt's input extensions dropped (its bufferViews were
+    decoded on reading and are copied plain), the codec's own added when something was
+    compressed."""
+    extensions_used = set(out.get("extensionsUsed", []))
+    extensions_required = set(out.get("extensionsRequired", []))
+    still_draco = any(
+        "KHR_draco_mesh_compression" in (p.get("extensions") or {})
+        for mesh in out.get("meshes", [])
+        for p in mesh.get("primitives", [])
+    )
+    if not still_draco:
+        extensions_used.discard("KHR_draco_mesh_compression")
+        extensions_required.discard("KHR_draco_mesh_compression")
+    extensions_used.difference_update(MESHOPT_EXTENSIONS)
+    extensions_required.difference_update(MESHOPT_EXTENSIONS)
+    new = {"KHR_draco_mesh_compression"} if codec == "draco" else {"EXT_meshopt_compression"}
+    if codec == "meshopt":
+        new.add("KHR_mesh_quantization")
+    if not compressed:
+        new = set()
+    out["extensionsUsed"] = sorted(extensions_used | new)
+    out["extensionsRequired"] = sorted(extensions_required | new)
+
+
+def _point_at(
+    prim: dict[str, Any],
+    attributes: dict[str, int],
+    indices: int,
+    draco: dict[str, Any] | None,
+) -> None:
+    """Point a primitive at its compressed accessors (and Draco data)."""
+    extensions = prim.get("extensions") or {}
+    extensions.pop("KHR_draco_mesh_compression", None)
+    if draco is not None:
+        extensions["KHR_draco_mesh_compression"] = dict(draco)
+    if extensions:
+        prim["extensions"] = extensions
+    else:
+        prim.pop("extensions", None)
+    prim["mode"] = 4
+    prim["attributes"] = dict(attributes)
+    prim["indices"] = indices
+
+
+def _apply_frames(
+    out: dict[str, Any], document: Document, frames: dict[int, tuple[np.ndarray, float]]
+) -> None:
+    """A mesh whose positions are stored in a frame of their own (``mesh -> (origin,
+    step)``: a reader places ``origin + step * stored``; integer codes with meshopt,
+    positions relative to their centre with Draco) has it folded into the nodes that show
+    it, or, for a node that carries more than the mesh (children, an animation, a skin, a
+    camera, extensions), into a new child node that takes the mesh over."""
+    animated = document.animated_nodes()
+    nodes = out.setdefault("nodes", [])
+    for index in range(len(nodes)):
+        node = nodes[index]
+        mesh = node.get("mesh")
+        if mesh is None or mesh not in frames:
+            continue
+        origin, step = frames[mesh]
+        alone = set(node) <= {"mesh", "name", "translation", "rotation", "scale", "matrix"}
+        if not alone or index in animated:
+            child: dict[str, Any] = {"mesh": mesh, "translation": [json_number(x) for x in origin]}
+            if step != 1.0:
+                child["scale"] = [step] * 3
+            if "weights" in node:
+                child["weights"] = node.pop("weights")
+            node.pop("mesh")
+            nodes.append(child)
+            node.setdefault("children", []).append(len(nodes) - 1)
+            continue
+        local = document.node_matrix(index)
+        d = np.eye(4)
+        d[:3, :3] *= step
+        d[:3, 3] = origin
+        if "matrix" in node:
+            node["matrix"] = [float(x) for x in (local @ d).T.reshape(-1)]
+        else:
+            rotation_scale = local[:3, :3]
+            node["translation"] = [json_number(x) for x in local[:3, 3] + rotation_scale @ origin]
+            if step != 1.0:
+                node["scale"] = [float(s) * step for s in node.get("scale", [1.0, 1.0, 1.0])]
+
+
+#: Inputs that can hold more than positions and faces (materials, textures, UVs, normals,
+
+
+# --- the one document writer: GLB, or .gltf with its buffer beside it ----------------------
+
+
+def glb_bytes(document: dict[str, Any], binary: bytes) -> bytes:
+    """A GLB container: the JSON chunk (space-padded) and the binary chunk."""
+    text = json.dumps(document, separators=(",", ":")).encode()
+    text += b" " * ((-len(text)) % 4)
+    binary += b"\0" * ((-len(binary)) % 4)
+    total = 12 + 8 + len(text) + (8 + len(binary) if binary else 0)
+    parts = [struct.pack("<4sII", b"glTF", 2, total), struct.pack("<I4s", len(text), b"JSON"), text]
+    if binary:
+        parts += [struct.pack("<I4s", len(binary), b"BIN\0"), binary]
+    return b"".join(parts)
+
+
+def document_size(document: dict[str, Any], binary: bytes, suffix: str) -> int:
+    """Bytes of the file :func:`write_document` writes: a GLB, or a ``.gltf``'s JSON and
+    buffer."""
+    if suffix == ".gltf":
+        buffers = document["buffers"]
+        named = {**document, "buffers": [{**buffers[0], "uri": "x.bin"}, *buffers[1:]]}
+        return len(json.dumps(named, separators=(",", ":")).encode()) + len(binary)
+    return len(glb_bytes(document, binary))
+
+
+def write_document(
+    document: dict[str, Any],
+    binary: bytes,
+    output: str | Path | None,
+    verbatim: bytes | None = None,
+) -> tuple[list[str], int]:
+    """Write a glTF document (its JSON, and its first buffer's bytes ``binary``),
+    atomically: as GLB, or for a ``.gltf`` as its JSON with the buffer beside it, named
+    after it (``out.gltf`` and ``out.bin``, so that two outputs in one folder never share
+    one); or ``verbatim``, an input's own bytes. With ``output`` None nothing is written.
+    Returns the files written and the output's size in bytes."""
+    if output is None:
+        return [], len(verbatim) if verbatim is not None else len(glb_bytes(document, binary))
+    path = Path(output)
+    if verbatim is not None:
+        write_atomic(path, verbatim)
+        return [str(path)], len(verbatim)
+    if path.suffix.lower() == ".glb":
+        glb = glb_bytes(document, binary)
+        write_atomic(path, glb)
+        return [str(path)], len(glb)
+    if not document.get("buffers"):  # a document without binary data: its JSON alone
+        text = json.dumps(document, separators=(",", ":")).encode()
+        write_atomic(path, text)
+        return [str(path)], len(text)
+    bin_name = f"{path.stem}.bin"
+    document["buffers"][0]["uri"] = bin_name
+    text = json.dumps(document, separators=(",", ":")).encode()
+    write_atomic(path.with_name(bin_name), binary)
+    write_atomic(path, text)
+    return [str(path), str(path.with_name(bin_name))], len(text) + len(binary)

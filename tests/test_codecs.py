@@ -1,19 +1,26 @@
-"""Real encoders (Draco, quantized PLY), the size-model fit, and simplification."""
+"""meshbits.codecs: the real encoders (Draco for meshes and primitives, quantized PLY and
+GLB), fixed-width sizes, the size-model fit; and simplification's level choice."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from independent import hausdorff_lower
 
 import meshbits
-from meshbits.encode import encode, encode_draco, encode_quantized_ply, fit_size_model
+from meshbits.codecs import encode, encode_draco, encode_quantized_ply, fit_size_model
+from meshbits.codecs.attributes import AttributeBits
+from meshbits.codecs.draco import encode_draco_primitive
 from meshbits.simplify import closest_level
+
+DATA = Path(__file__).parent / "data"
 
 
 @settings(max_examples=50, deadline=None)
@@ -92,7 +99,7 @@ def test_quantized_glb_decodes_in_trimesh_to_the_grid(bits):
     import io
 
     from meshbits import quantize
-    from meshbits.encode import encode_quantized_glb
+    from meshbits.codecs import encode_quantized_glb
 
     mesh = trimesh.load(meshbits.example_mesh_path(), process=False)
     vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
@@ -112,7 +119,7 @@ def test_quantized_glb_decodes_in_trimesh_to_the_grid(bits):
 
 
 def test_quantized_glb_refuses_more_than_16_bits():
-    from meshbits.encode import encode_quantized_glb
+    from meshbits.codecs import encode_quantized_glb
 
     with pytest.raises(ValueError, match="1 to 16"):
         encode_quantized_glb(trimesh.creation.icosphere(1), 17)
@@ -171,7 +178,7 @@ def test_draco_on_a_mesh_of_degenerate_faces_is_refused_in_words(tmp_path):
 )
 def test_fixed_width_size_is_the_encoded_size(fmt, bits, subdivisions):
     """glb and ply sizes from the vertex and face counts alone, against the encoder."""
-    from meshbits.encode import fixed_width_size_bits
+    from meshbits.codecs import fixed_width_size_bits
 
     sphere = trimesh.creation.icosphere(subdivisions)
     encoded = encode((sphere.vertices * 3.7 + 1.0, sphere.faces), bits, format=fmt)
@@ -213,3 +220,25 @@ def test_draco_codes_are_draco_grid_codes(bits):
     expected = meshbits.quantize(vertices, bits, box=(origin, origin + size)).codes
     same = {tuple(c) for c in encoded.codes.astype(int)} & {tuple(c) for c in expected.astype(int)}
     assert len(same) >= 0.95 * len(expected)
+
+
+def test_draco_refusing_a_candidate_does_not_end_the_search():
+    """Draco 1.5.7 refuses the bunny at 3,851 faces with UVs at 18 to 21 bits ("Failed to
+    encode point attributes") at compression level 7: SheenCloth at a tight budget exited
+    3. The encoder falls back to a level that takes it."""
+    vertices, faces = meshbits.load_mesh(DATA / "bunny_res3.ply")
+    lo, side = vertices.min(axis=0), float(np.ptp(vertices, axis=0).max())
+    uv = (vertices[:, :2] - lo[:2]) / side
+    for bits in range(17, 23):
+        encoding = encode_draco_primitive(
+            vertices,
+            faces,
+            {"TEXCOORD_0": uv},
+            bits,
+            lo,
+            side,
+            AttributeBits(8, {"TEXCOORD_0": 12}),
+        )
+        step = side / (2**bits - 1)
+        assert len(encoding.faces) == len(faces)
+        assert hausdorff_lower((vertices, faces), (encoding.vertices, encoding.faces)) <= step

@@ -1,0 +1,450 @@
+"""A scene compressed whole (:func:`compress_scene`): every triangle primitive of a glTF
+document (or of an OBJ, PLY... read as one) to one world-space error budget, or a size
+budget split across them, and the document written around them with everything else
+kept. The error budget is a world-space length: a primitive's error is its mesh's error
+times the largest scale of the nodes that instance it."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..codecs.attributes import NORMAL_TOLERANCE_DEGREES
+from ..codecs.primitive import PrimitiveEncoding
+from ..compress import budget_number
+from ..errors import MeshbitsError, MeshFileError
+from ..files import asset_bytes, check_not_an_input
+from ..formats.gltf.document import Document, PrimitiveData
+from ..formats.gltf.write import (
+    CompressedGeometry,
+    document_size,
+    image_key,
+    rebuild_document,
+    write_document,
+)
+from ..formats.open import load_document
+from ..results import Progress, ProgressCallback
+from ..units import length_unit_of
+from .primitive_search import search_primitive
+from .primitives import (
+    Job,
+    Outcome,
+    decoded_primitives,
+    place_in_frames,
+    plan_jobs,
+    world_box,
+)
+from .report import PrimitiveReport, SceneResult, budget_text, job_report, kept_report, scene_result
+from .shared_grid import Encodings, final_encodings
+from .split import RunAt, size_one, split_size
+
+__all__ = ["CODECS", "WORLD_ROUNDING", "compress_scene", "scene_document"]
+
+#: Codecs of :func:`compress_scene`.
+CODECS = ("draco", "meshopt")
+
+#: Relative float64 rounding of a world position a reader composes from the file (node
+#: transforms applied to float32 or integer positions), bounded generously: every
+#: certified world-space bound is raised by this times the largest world coordinate.
+WORLD_ROUNDING = 16 * 2.0**-52
+
+
+def compress_scene(
+    source: str | Path | Document,
+    *,
+    error: float | None = None,
+    size: float | None = None,
+    relative: bool = False,
+    codec: str = "draco",
+    normal_tolerance: float = NORMAL_TOLERANCE_DEGREES,
+    output: str | Path | None = None,
+    seed: int = 0,
+    certify: bool = True,
+    progress: ProgressCallback | None = None,
+) -> SceneResult:
+    """Compress every triangle primitive of a scene to one world-space budget and write
+    the scene with everything else kept.
+
+    Primitives whose attributes and indices are the same accessors are compressed once
+    and keep sharing their data. A primitive (with every primitive sharing its meshes'
+    frame) whose compressed data would not be smaller than its input's is written as it
+    was; a glTF input whose compressed file would be larger than itself is written as it
+    was (byte for byte, ``.glb`` to ``.glb``).
+
+    Parameters
+    ----------
+    source
+        A ``.glb`` / ``.gltf`` file, an OBJ (with MTL and textures), a PLY (with colours),
+        or any mesh trimesh reads; or a :class:`meshbits.formats.Document`.
+    error
+        World-space error budget: the Hausdorff distance of every primitive, scaled by the
+        largest scale of the nodes that instance it, in world units (or with ``relative``, as
+        a fraction of the largest side of the scene's world bounding box).
+    size
+        Size budget of the whole file, in **bits** (the CLI parses "100KB").
+    codec
+        ``"draco"`` (``KHR_draco_mesh_compression``) or ``"meshopt"``
+        (``EXT_meshopt_compression`` with ``KHR_mesh_quantization``).
+    normal_tolerance
+        Largest angle (degrees) between a normal or tangent and its quantized value.
+    output
+        ``.glb`` or ``.gltf`` to write (atomically; a ``.gltf``'s buffer goes beside it,
+        named after it). None: nothing written.
+    seed
+        Seed of every measurement.
+    certify
+        Judge each primitive's budget by a certified upper bound of its error (default),
+        not by the sampled distance, which only bounds it from below.
+    progress
+        Called with a :class:`meshbits.Progress` per primitive searched (``str(event)``
+        is its line).
+
+    Returns
+    -------
+    SceneResult
+    """
+    start = time.perf_counter()
+    constraint, budget = _check_scene_arguments(error, size, codec, normal_tolerance, output)
+    scene = _plan(source, output, normal_tolerance)
+    if constraint == "error" and relative:
+        budget *= scene.world_size
+    jobs = scene.jobs
+    run_at = _run_at(jobs, codec, seed, certify, scene.margin, scene.unit, progress)
+    if not jobs:
+        outcomes, target_error = [], budget if constraint == "error" else 0.0
+    elif constraint == "error":
+        outcomes, target_error = run_at(budget), budget
+    else:
+        outcomes, target_error = _size_search(
+            scene.document, jobs, budget, codec, seed, certify, run_at, scene.world_size
+        )
+    encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
+    files, size_bytes = _write(
+        scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes
+    )
+    return scene_result(
+        constraint,
+        budget,
+        certify,
+        codec,
+        _reports(scene, outcomes, encodings, target_error, certify, constraint),
+        size_bytes,
+        scene.input_bytes,
+        files,
+        scene.unit,
+        start,
+        scene.document.notes,
+        budget_text(error, size, relative),
+        [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(scene.kept),
+    )
+
+
+@dataclass
+class _Planned:
+    """A scene read and planned: its document, the input's bytes (0 for a document given
+    in memory), the unit of its lengths, its meshes' instances, the jobs to compress and
+    the primitives kept as they are, the largest side of its world box and the world
+    rounding margin (world units)."""
+
+    document: Document
+    input_bytes: int
+    unit: str
+    instances: dict[int, list[tuple[int, np.ndarray]]]
+    jobs: list[Job]
+    kept: list[PrimitiveData]
+    world_size: float
+    margin: float
+
+
+def _plan(source: Any, output: str | Path | None, normal_tolerance: float) -> _Planned:
+    """Read the scene, group its primitives into jobs and place them in frames."""
+    document, input_bytes = _read_source(source, output)
+    # A glTF's lengths are meters; another file's are its own coordinates, as its JSON
+    # report says (``length_unit``).
+    unit = "m" if isinstance(source, Document) else length_unit_of(source)
+    instances = document.mesh_instances()
+    where = "" if isinstance(source, Document) else f"{source}: "
+    primitives = decoded_primitives(document, where)
+    jobs, kept = plan_jobs(document, primitives, instances, normal_tolerance, where)
+    if not jobs and not kept:
+        raise MeshFileError("the scene has no triangle primitive")
+    place_in_frames(jobs, kept, document)
+    world_size, reach = world_box(primitives, instances)
+    # The world positions a reader computes (float32 values through float64 node
+    # transforms) carry float64 rounding that the measurement in each mesh's frame does
+    # not: every bound is raised by it.
+    margin = WORLD_ROUNDING * reach
+    return _Planned(document, input_bytes, unit, instances, jobs, kept, world_size, margin)
+
+
+def _reports(
+    scene: _Planned,
+    outcomes: list[Outcome],
+    encodings: Encodings,
+    target_error: float,
+    certify: bool,
+    constraint: str,
+) -> list[PrimitiveReport]:
+    """A report per job (its first primitive's), then one per primitive kept."""
+    reports = [
+        job_report(
+            scene.document,
+            job,
+            outcome,
+            encoding,
+            error,
+            upper,
+            target_error,
+            scene.margin,
+            certify,
+            constraint,
+        )
+        for job, outcome, encoding, error, upper in zip(
+            scene.jobs, outcomes, *encodings, strict=True
+        )
+    ]
+    return reports + [
+        kept_report(scene.document, data, scene.instances, certify, scene.margin)
+        for data in scene.kept
+    ]
+
+
+def _read_source(source: Any, output: str | Path | None) -> tuple[Document, int]:
+    """The scene's document and the input's bytes (0 for a document given in memory);
+    an output that is the input, or a source that is no file nor document, refused."""
+    if output is not None and not isinstance(source, Document):
+        check_not_an_input(output, source)
+    if not isinstance(source, (str, Path, Document)):
+        raise TypeError(
+            f"compress_scene takes a file path or a meshbits.formats.Document, got "
+            f"{type(source).__name__}: for a mesh in memory use meshbits.compress, or export "
+            "the scene to a .glb first"
+        )
+    if isinstance(source, Document):
+        return source, 0
+    return load_document(source), asset_bytes(source)
+
+
+def _run_at(
+    jobs: list[Job],
+    codec: str,
+    seed: int,
+    certify: bool,
+    margin: float,
+    unit: str,
+    progress: ProgressCallback | None,
+) -> RunAt:
+    """Every job searched within one common world error (its local budget that error,
+    less the world rounding ``margin``, over its scale), each answer told to
+    ``progress``."""
+
+    def run_at(world_error: float) -> list[Outcome]:
+        outcomes = []
+        for job in jobs:
+            local = max(world_error - margin, world_error / 2) / job.scale
+            outcome = search_primitive(job, local, codec, seed, certify)
+            outcomes.append(outcome)
+            if outcome[0] is not None and progress is not None:
+                progress(
+                    Progress(
+                        "compress_scene",
+                        f"mesh {job.data.mesh} primitive {job.data.index} within "
+                        f"{world_error:.4g}: B = {outcome[0].bits}, V = {outcome[0].vertices}, "
+                        f"{outcome[1].size_bits // 8} bytes, error "
+                        f"{outcome[0].measured_error * job.scale:.4g} ({unit})",
+                    )
+                )
+        return outcomes
+
+    return run_at
+
+
+def scene_document(
+    document: Document, jobs: list[Job], encodings: list[PrimitiveEncoding | None], codec: str
+) -> tuple[dict[str, Any], bytes]:
+    """The output document (JSON) and its buffer: the jobs compressed (not kept, with an
+    encoding) written by :func:`meshbits.formats.gltf.write.rebuild_document`, each once
+    for every primitive of its ``targets``."""
+    geometries = [
+        CompressedGeometry(job.targets, encoding, job.offset)
+        for job, encoding in zip(jobs, encodings, strict=True)
+        if job.kept is None and encoding is not None
+    ]
+    return rebuild_document(document, geometries, codec)
+
+
+def _write(
+    document: Document,
+    jobs: list[Job],
+    encodings: list[PrimitiveEncoding | None],
+    codec: str,
+    source: Any,
+    output: str | Path | None,
+    input_bytes: int,
+) -> tuple[list[str], int]:
+    """Write the output (when asked): clusters whose data would grow kept as they were,
+    every primitive kept when the file would be larger than a glTF input (and a .glb
+    input itself written when even that is larger). Returns the files and the size."""
+    _keep_what_grows(document, jobs, encodings)
+    out, data = scene_document(document, jobs, encodings, codec)
+    written: bytes | None = None
+    grew = _larger_than_input(source, output, input_bytes, out, data)
+    if grew is not None:
+        for job in jobs:
+            job.kept = job.kept or grew
+        out, data = scene_document(document, jobs, encodings, codec)
+        if _larger_than_input(source, output, input_bytes, out, data) and _verbatim(source, output):
+            written = Path(source).read_bytes()
+    return write_document(out, data, output, written)
+
+
+def _check_scene_arguments(
+    error: float | None,
+    size: float | None,
+    codec: str,
+    normal_tolerance: float,
+    output: str | Path | None,
+) -> tuple[str, float]:
+    """The constraint and its budget (as given), every argument checked."""
+    given = [n for n, v in (("error", error), ("size", size)) if v is not None]
+    if len(given) != 1:
+        raise MeshbitsError(f"give exactly one of error, size (got {given or 'none'})")
+    if codec not in CODECS:
+        raise MeshbitsError(f"codec must be one of {CODECS}, got {codec!r}")
+    budget = budget_number(given[0], error if error is not None else size)
+    if not (math.isfinite(budget) and budget > 0):
+        raise MeshbitsError(f"the {given[0]} budget must be a positive finite number, got {budget}")
+    if not (0 < normal_tolerance < 90):
+        raise MeshbitsError(f"normal_tolerance must be in (0, 90) degrees, got {normal_tolerance}")
+    if output is not None and Path(output).suffix.lower() not in (".glb", ".gltf"):
+        raise MeshbitsError(f"a scene is written as .glb or .gltf, not {Path(output).suffix}")
+    return given[0], budget
+
+
+def _size_search(
+    document: Document,
+    jobs: list[Job],
+    budget: float,
+    codec: str,
+    seed: int,
+    certify: bool,
+    run_at: RunAt,
+    world_size: float,
+) -> tuple[list[Outcome], float]:
+    """A size budget (bits): one primitive's own size search, or the common world error
+    that fills the file (:func:`meshbits.scene.split.split_size`). Returns the outcomes
+    and that error."""
+
+    def file_bytes(outcomes: list[Outcome]) -> int:
+        encodings, _, _ = final_encodings(jobs, outcomes, codec, False, 0.0, 0.0, False)
+        return document_size(*scene_document(document, jobs, encodings, codec), ".glb")
+
+    fixed = _fixed_bytes(document, jobs)
+    if budget / 8 - fixed <= 0:
+        images = len(document.json.get("images", []))
+        parts = (
+            f"{images} image{'' if images == 1 else 's'}, its JSON and other data"
+            if images
+            else "its JSON and other data"
+        )
+        raise MeshbitsError(
+            f"the size budget ({budget / 8:.6g} bytes) is less than what the output keeps "
+            f"whatever its geometry: {parts} ({fixed} bytes)"
+        )
+    if len(jobs) == 1:
+        return size_one(jobs[0], budget, fixed, codec, seed, certify, file_bytes)
+    return split_size(jobs, budget, run_at, world_size, file_bytes)
+
+
+def _input_views(document: Document, targets: list[tuple[int, int]]) -> set[int]:
+    """The bufferViews a set of primitives read (attributes, indices, Draco data)."""
+    views: set[int] = set()
+    accessors = document.json.get("accessors", [])
+    for mesh, index in targets:
+        prim = document.json["meshes"][mesh]["primitives"][index]
+        used = list((prim.get("attributes") or {}).values())
+        if prim.get("indices") is not None:
+            used.append(prim["indices"])
+        for accessor in used:
+            spec = accessors[accessor]
+            if spec.get("bufferView") is not None:
+                views.add(spec["bufferView"])
+            for part in ("indices", "values"):
+                view = ((spec.get("sparse") or {}).get(part) or {}).get("bufferView")
+                if view is not None:
+                    views.add(view)
+        draco = (prim.get("extensions") or {}).get("KHR_draco_mesh_compression")
+        if draco is not None:
+            views.add(draco["bufferView"])
+    return views
+
+
+def _keep_what_grows(
+    document: Document, jobs: list[Job], encodings: list[PrimitiveEncoding | None]
+) -> None:
+    """Keep as they were the jobs of every frame cluster whose compressed data is not
+    smaller than the input data its primitives read (or of which one job is kept: its
+    meshes' frames cannot change)."""
+    clusters: dict[int, list[int]] = {}
+    for i, job in enumerate(jobs):
+        clusters.setdefault(job.cluster, []).append(i)
+    for members in clusters.values():
+        reason = next((jobs[i].kept for i in members if jobs[i].kept), None)
+        if reason is None:
+            views = _input_views(document, [t for i in members for t in jobs[i].targets])
+            before = sum(int(document.json["bufferViews"][v]["byteLength"]) for v in views)
+            after = sum(encodings[i].size_bits // 8 for i in members)  # type: ignore[union-attr]
+            if after >= before:
+                reason = (
+                    f"compressed, it would not be smaller ({after:,} bytes against the "
+                    f"{before:,} of its input)"
+                )
+        if reason is not None:
+            for i in members:
+                jobs[i].kept = jobs[i].kept or reason
+
+
+def _larger_than_input(
+    source: Any, output: Any, input_bytes: int, out: dict[str, Any], data: bytes
+) -> str | None:
+    """Why a glTF input is written as it was: its output would be larger than it."""
+    if not input_bytes or Path(str(source)).suffix.lower() not in (".glb", ".gltf"):
+        return None
+    suffix = Path(output).suffix.lower() if output is not None else ".glb"
+    size = document_size(out, data, suffix)
+    if size <= input_bytes:
+        return None
+    return f"compressed, the file would be larger than its input ({size:,} > {input_bytes:,} bytes)"
+
+
+def _verbatim(source: Any, output: Any) -> bool:
+    """Whether the input file itself can be the output: a .glb written as .glb."""
+    suffix = Path(output).suffix.lower() if output is not None else ".glb"
+    return suffix == ".glb" and Path(str(source)).suffix.lower() == ".glb"
+
+
+def _fixed_bytes(document: Document, jobs: list[Job]) -> int:
+    """Bytes the output keeps whatever the geometry: every bufferView not read by a
+    compressed primitive, plus the JSON (estimated at its input size)."""
+    replaced = set()
+    for job in jobs:
+        for mesh, index in job.targets:
+            prim = document.json["meshes"][mesh]["primitives"][index]
+            replaced.update(prim.get("attributes", {}).values())
+            if prim.get("indices") is not None:
+                replaced.add(prim["indices"])
+    views = set()
+    for i, acc in enumerate(document.json.get("accessors", [])):
+        if i not in replaced and acc.get("bufferView") is not None:
+            views.add(acc["bufferView"])
+    total = sum(int(document.json["bufferViews"][v]["byteLength"]) for v in views)
+    images = {image_key(document, i): i for i in range(len(document.json.get("images", [])))}
+    for i in images.values():
+        total += len(document.image_bytes(i)[0])
+    return total + len(json.dumps(document.json))
