@@ -805,7 +805,7 @@ _BATCH_LISTED = 20
 
 
 def _print_batch(result: Any, args: argparse.Namespace) -> None:
-    from .batch import _bytes_text
+    from .batch.report import bytes_text as _bytes_text
 
     if args.json:
         _print_json(result.to_dict())

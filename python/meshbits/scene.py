@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from . import _core
+from .budget import Budget
 from .complexity import shape_complexity
-from .compress import budget_number
 from .constants import (
     ANSWER_RELATIVE_TOLERANCE,
     CERTIFY_TOLERANCE,
@@ -984,7 +984,8 @@ def compress_scene(
     SceneResult
     """
     start = time.perf_counter()
-    constraint, budget = _check_scene_arguments(error, size, codec, normal_tolerance, output)
+    given = _check_scene_arguments(error, size, relative, codec, normal_tolerance, output)
+    constraint = given.kind
     if output is not None and not isinstance(source, Document):
         check_not_an_input(output, source)
     if not isinstance(source, (str, Path, Document)):
@@ -1019,8 +1020,7 @@ def compress_scene(
     # transforms) carry float64 rounding that the measurement in each mesh's frame does
     # not: every bound is raised by it.
     margin = WORLD_ROUNDING * reach
-    if constraint == "error" and relative:
-        budget *= world_size
+    budget = given.resolve(world_size)
 
     def run_at(world_error: float) -> list[Outcome]:
         outcomes = []
@@ -1089,39 +1089,28 @@ def compress_scene(
         unit,
         start,
         document.notes,
-        _budget_text(error, size, relative),
+        given.describe(),
         [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(kept),
     )
-
-
-def _budget_text(error: Any, size: Any, relative: bool) -> str:
-    """The budget as the caller gave it, in words."""
-    if error is not None:
-        return f"{error:g} x S" if relative else (error if isinstance(error, str) else f"{error:g}")
-    return f"{size / 8:g} bytes"
 
 
 def _check_scene_arguments(
     error: float | None,
     size: float | None,
+    relative: bool,
     codec: str,
     normal_tolerance: float,
     output: str | Path | None,
-) -> tuple[str, float]:
-    """The constraint and its budget (as given), every argument checked."""
-    given = [n for n, v in (("error", error), ("size", size)) if v is not None]
-    if len(given) != 1:
-        raise MeshbitsError(f"give exactly one of error, size (got {given or 'none'})")
+) -> Budget:
+    """The budget (as given), every argument checked."""
+    given = Budget.from_options(error=error, size=size, relative=relative, kinds=("error", "size"))
     if codec not in CODECS:
         raise MeshbitsError(f"codec must be one of {CODECS}, got {codec!r}")
-    budget = budget_number(given[0], error if error is not None else size)
-    if not (math.isfinite(budget) and budget > 0):
-        raise MeshbitsError(f"the {given[0]} budget must be a positive finite number, got {budget}")
     if not (0 < normal_tolerance < 90):
         raise MeshbitsError(f"normal_tolerance must be in (0, 90) degrees, got {normal_tolerance}")
     if output is not None and Path(output).suffix.lower() not in (".glb", ".gltf"):
         raise MeshbitsError(f"a scene is written as .glb or .gltf, not {Path(output).suffix}")
-    return given[0], budget
+    return given
 
 
 def _size_search(document, jobs, budget, codec, seed, certify, run_at, world_size):
