@@ -358,6 +358,7 @@ def normalised_options(options: dict[str, Any]) -> dict[str, Any]:
 
 
 def bytes_text(count: float) -> str:
+    """A byte count for people: ``"1.23 MB"``, ``"512 B"`` (decimal units)."""
     for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if abs(count) >= scale:
             return f"{count / scale:.3g} {unit}"
@@ -398,6 +399,7 @@ class ProgressBar:
 
 
 def _summary_rows(result: BatchResult, started: str) -> list[tuple[str, Any]]:
+    """The (metric, value) rows of the summary."""
     rows = [r for r in result.rows if r.output is not None]
     peaks = [r.peak_rss_bytes for r in result.rows if r.peak_rss_bytes is not None]
     ratio = result.output_bytes / result.input_bytes if result.input_bytes else None
@@ -441,6 +443,7 @@ def _summary_rows(result: BatchResult, started: str) -> list[tuple[str, Any]]:
 
 
 def write_summary(path: Path, result: BatchResult, started: str) -> None:
+    """``meshbits-summary.csv``: a ``metric,value`` row per total of ``result``."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(("metric", "value"))

@@ -188,40 +188,15 @@ def batch(
     to_run = [t for t in tasks if t.index not in resumed]
     report.start([*foreign, *resumed.values()])
     finished, runner, interrupted = _run(to_run, report, workers, dask, progress)
-    rows = tuple(
-        (resumed.get(t.index) or finished[t.index])
-        for t in tasks
-        if t.index in resumed or t.index in finished
-    )
-    statuses = Counter(r.status for r in rows)
-    written = [r for r in rows if r.output is not None and r.input_bytes is not None]
-    input_bytes = sum(r.input_bytes or 0 for r in written)
-    output_bytes = sum(r.output_bytes or 0 for r in written)
-    result = BatchResult(
-        rows=rows,
-        out_dir=str(out),
-        report=str(report.path),
-        summary=str(out / SUMMARY_NAME),
-        plot=None,
-        backend=runner.backend if runner is not None else "none",
-        workers=runner.workers if runner is not None else 0,
-        kernel_threads=max(0, runner.threads) if runner is not None else 0,
-        inputs=len(tasks),
-        ran=len(finished),
-        resumed=len(resumed),
-        met=statuses["met"],
-        unmet=statuses["unmet"],
-        unusable=statuses["unusable"],
-        internal_errors=statuses["internal_error"],
-        not_reached=len(to_run) - len(finished),
-        ignored=found.ignored,
-        duplicates=found.duplicates,
-        blank_manifest_rows=found.blank,
-        earlier_rows=len(foreign),
-        unreadable_report_lines=report.unreadable,
-        input_bytes=input_bytes,
-        output_bytes=output_bytes,
-        saved_bytes=input_bytes - output_bytes,
+    result = _result(
+        tasks=tasks,
+        found=found,
+        out=out,
+        report=report,
+        foreign=foreign,
+        resumed=resumed,
+        finished=finished,
+        runner=runner,
         seconds=time.perf_counter() - started_at,
         interrupted=interrupted,
         options=options,
@@ -329,3 +304,59 @@ def _run(
         if runner is not None:
             runner.close(interrupted)
     return finished, runner, interrupted
+
+
+def _result(
+    *,
+    tasks: list[Task],
+    found: Inputs,
+    out: Path,
+    report: ReportFile,
+    foreign: list[BatchRow],
+    resumed: dict[int, BatchRow],
+    finished: dict[int, BatchRow],
+    runner: Any,
+    seconds: float,
+    interrupted: bool,
+    options: dict[str, Any],
+) -> BatchResult:
+    """The totals of a batch, its rows in input order (resumed ones included)."""
+    rows = tuple(
+        (resumed.get(t.index) or finished[t.index])
+        for t in tasks
+        if t.index in resumed or t.index in finished
+    )
+    statuses = Counter(r.status for r in rows)
+    written = [r for r in rows if r.output is not None and r.input_bytes is not None]
+    input_bytes = sum(r.input_bytes or 0 for r in written)
+    output_bytes = sum(r.output_bytes or 0 for r in written)
+    result = BatchResult(
+        rows=rows,
+        out_dir=str(out),
+        report=str(report.path),
+        summary=str(out / SUMMARY_NAME),
+        plot=None,
+        backend=runner.backend if runner is not None else "none",
+        workers=runner.workers if runner is not None else 0,
+        kernel_threads=max(0, runner.threads) if runner is not None else 0,
+        inputs=len(tasks),
+        ran=len(finished),
+        resumed=len(resumed),
+        met=statuses["met"],
+        unmet=statuses["unmet"],
+        unusable=statuses["unusable"],
+        internal_errors=statuses["internal_error"],
+        not_reached=len(tasks) - len(resumed) - len(finished),
+        ignored=found.ignored,
+        duplicates=found.duplicates,
+        blank_manifest_rows=found.blank,
+        earlier_rows=len(foreign),
+        unreadable_report_lines=report.unreadable,
+        input_bytes=input_bytes,
+        output_bytes=output_bytes,
+        saved_bytes=input_bytes - output_bytes,
+        seconds=seconds,
+        interrupted=interrupted,
+        options=options,
+    )
+    return result

@@ -44,6 +44,8 @@ CODECS = ("draco", "meshopt")
 
 @dataclass(frozen=True)
 class Task:
+    """One input's job: its paths, its output and the batch's options."""
+
     index: int
     path: str
     relative: str
@@ -184,6 +186,7 @@ def failed_row(task: Task, message: str, *, trace: str | None = None) -> dict[st
 
 
 def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system has one)."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - macOS, Windows
