@@ -51,7 +51,8 @@ import trimesh
 from _shared import SHARED as SHARED_ROOT
 
 import meshbits
-from meshbits.batch import BatchResult, _cores
+from meshbits.batch import BatchResult
+from meshbits.batch.task import available_cores
 from meshbits.threads import get_num_threads, set_num_threads
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -145,7 +146,7 @@ def run(name: str, library: Path, **options: Any) -> tuple[BatchResult, dict[str
 
 def throughput(args: argparse.Namespace) -> None:
     library = OUT / "library"
-    cores = _cores()
+    cores = available_cores()
     size = make_library(library, args.count, args.seed, SOURCES, args.rounds)
     print(
         f"{args.count} meshes from {len(SOURCES)} sources, {size / 1e6:.1f} MB of binary PLY, "
@@ -239,7 +240,7 @@ def memory(args: argparse.Namespace) -> None:
     library = OUT / "memory_library"
     make_library(library, args.small, args.seed, ("suzanne", "bunny_res4", "spot", "teapot"))
     shutil.copy(SHARED / "dragon.ply.gz", library / "dragon.ply.gz")
-    print(f"the dragon and {args.small} small meshes, {_cores()} workers", flush=True)
+    print(f"the dragon and {args.small} small meshes, {available_cores()} workers", flush=True)
     result, row = run("memory", library)
     by_worker: dict[str, list[meshbits.BatchRow]] = {}
     for r in result.rows:

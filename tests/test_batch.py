@@ -17,6 +17,9 @@ import pytest
 from independent import read_gltf, read_output
 
 import meshbits
+from meshbits.batch.inputs import output_names
+from meshbits.batch.report import ReportFile
+from meshbits.batch.task import available_cores
 from meshbits.cli import main
 
 DATA = Path(__file__).parent / "data"
@@ -216,7 +219,7 @@ def test_output_names_never_collide(tmp_path):
     for name in ("a.ply", "a.obj", "b.ply.gz"):
         (root / name).write_bytes(b"")
     inputs = batch_module.find_inputs(root)
-    names = dict(batch_module._output_names(inputs, tmp_path / "out", "drc"))
+    names = dict(output_names(inputs, tmp_path / "out", "drc"))
     assert names == {"a.obj": "a.obj.drc", "a.ply": "a.ply.drc", "b.ply.gz": "b.drc"}
 
 
@@ -311,7 +314,8 @@ def test_unmet_budget_exit_1(tmp_path, capsys):
 
 
 def test_an_internal_error_is_recorded_and_the_batch_goes_on(tmp_path, monkeypatch, capsys):
-    compress_module = importlib.import_module("meshbits.compress")
+    # The task calls the compress its module imported: the bug goes there.
+    compress_module = importlib.import_module("meshbits.batch.task")
     real = compress_module.compress
 
     def buggy(mesh, **kwargs):
@@ -384,7 +388,7 @@ def test_the_process_pool_gives_the_serial_results(tmp_path):
     serial = meshbits.batch(root, tmp_path / "serial", error=0.01, relative=True, workers=1)
     pooled = meshbits.batch(root, tmp_path / "pool", error=0.01, relative=True, workers=2)
     assert (serial.backend, pooled.backend) == ("serial", "processes")
-    assert (pooled.workers, pooled.kernel_threads) == (2, max(1, batch_module._cores() // 2))
+    assert (pooled.workers, pooled.kernel_threads) == (2, max(1, available_cores() // 2))
     for a, b in zip(serial.rows, pooled.rows, strict=True):
         assert (a.bits, a.vertices, a.output_bytes, a.error) == (
             b.bits,
@@ -444,13 +448,13 @@ def test_dask_local_cluster(tmp_path, capsys):
 def test_ctrl_c_keeps_the_report_of_what_finished(tmp_path, monkeypatch, capsys, workers):
     root = good_library(tmp_path)
     shutil.copy(DATA / "bunny_res4.ply", root / "sub" / "bunny2.ply")
-    real = batch_module._Report.append
+    real = ReportFile.append
 
     def interrupted_after_one(self, row):
         real(self, row)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(batch_module._Report, "append", interrupted_after_one)
+    monkeypatch.setattr(ReportFile, "append", interrupted_after_one)
     out = tmp_path / "out"
     code = main(["batch", str(root), "-o", str(out), *LOOSE, "--workers", str(workers)])
     captured = capsys.readouterr()

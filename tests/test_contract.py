@@ -16,13 +16,15 @@ import trimesh
 import meshbits
 from meshbits import cli
 from meshbits.cli import main
+from meshbits.cli.common import print_json
 from meshbits.codecs import encode_draco
 from meshbits.files import write_atomic
 
 DATA = Path(__file__).parent / "data"
 BUNNY = str(DATA / "bunny.ply")
 SMALL = str(DATA / "bunny_res4.ply")
-compress_module = importlib.import_module("meshbits.compress")
+#: The module of ``meshbits compress``: a bug planted in the compress it calls.
+compress_module = importlib.import_module("meshbits.cli.compress")
 
 
 def _strict_json(text: str) -> dict:
@@ -111,7 +113,7 @@ def test_an_unreachable_size_in_python_keeps_the_smallest_result():
     ],
 )
 def test_budgets_are_refused_as_typed_before_the_mesh_is_read(capsys, monkeypatch, argv, echo):
-    monkeypatch.setattr(cli, "load_mesh", _must_not_load)
+    _forbid_reading(monkeypatch)
     assert main(["compress", "/no/such/mesh.ply", *argv]) == 2
     line = _one_line(capsys.readouterr().err)
     assert echo in line and "no such mesh" not in line
@@ -119,6 +121,18 @@ def test_budgets_are_refused_as_typed_before_the_mesh_is_read(capsys, monkeypatc
 
 def _must_not_load(*_args: object, **_kwargs: object) -> None:
     raise AssertionError("the mesh was read before the arguments were checked")
+
+
+#: The command modules of the CLI (each reads meshes with the load_mesh it imported).
+CLI_COMMANDS = ("common", "info", "compress", "plan", "calibrate", "hausdorff", "quantize", "plot")
+
+
+def _forbid_reading(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make every command's mesh read fail the test."""
+    for name in CLI_COMMANDS:
+        module = importlib.import_module(f"meshbits.cli.{name}")
+        if hasattr(module, "load_mesh"):
+            monkeypatch.setattr(module, "load_mesh", _must_not_load)
 
 
 # --- writes ------------------------------------------------------------------------------
@@ -135,7 +149,7 @@ def _must_not_load(*_args: object, **_kwargs: object) -> None:
     ],
 )
 def test_a_missing_output_folder_is_refused_before_any_work(tmp_path, capsys, monkeypatch, argv):
-    monkeypatch.setattr(cli, "load_mesh", _must_not_load)
+    _forbid_reading(monkeypatch)
     missing = tmp_path / "not" / "there"
     argv = [a.replace("{missing}", str(missing)) for a in argv]
     assert main(argv) == 2
@@ -265,7 +279,7 @@ def test_compress_help_says_nothing_is_written_without_output(capsys):
 
 
 def test_json_output_never_holds_nan_or_infinity(capsys):
-    cli._print_json({"a": float("nan"), "b": [np.inf, np.float32(2.5)], "c": np.arange(2)})
+    print_json({"a": float("nan"), "b": [np.inf, np.float32(2.5)], "c": np.arange(2)})
     assert _strict_json(capsys.readouterr().out) == {"a": None, "b": [None, 2.5], "c": [0, 1]}
 
 

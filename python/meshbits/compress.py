@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from . import model
+from .budget import Budget
 from .codecs.draco import draco_max_bits
 from .complexity import ShapeComplexity, shape_complexity
 from .constants import (
@@ -318,14 +319,8 @@ def compress(
         Bad mesh or arguments, a budget that is not a positive finite number. (A mesh
         with K = 0, a flat one, is planned with :data:`meshbits.constants.FLAT_K`.)
     """
-    given = [
-        name
-        for name, value in (("size", size), ("error", error), ("vertices", vertices))
-        if value is not None
-    ]
-    if len(given) != 1:
-        raise MeshbitsError(f"give exactly one of size, error, vertices (got {given or 'none'})")
-    constraint = given[0]
+    given = Budget.from_options(size=size, error=error, vertices=vertices, relative=relative)
+    constraint = given.kind
     if isinstance(max_iterations, bool) or not isinstance(max_iterations, numbers.Integral):
         raise TypeError(f"max_iterations must be an integer, got {max_iterations!r}")
     if max_iterations < 1:
@@ -334,12 +329,6 @@ def compress(
         raise MeshbitsError(f"format must be one of {tuple(FORMAT_MAX_BITS)}, got {format!r}")
     if method not in (*METHODS, "auto"):
         raise MeshbitsError(f"method must be 'auto' or one of {METHODS}, got {method!r}")
-    value = {"size": size, "error": error, "vertices": vertices}[constraint]
-    budget = budget_number(constraint, value)
-    if not math.isfinite(budget) or budget <= 0:
-        raise MeshbitsError(
-            f"the {constraint} budget must be a positive finite number, got {value}"
-        )
     alpha, connectivity_bits = model.size_model_parameters(alpha, connectivity_bits)
     original = weld(as_mesh(mesh))
     available = referenced_vertex_count(original[1])
@@ -350,8 +339,7 @@ def compress(
     complexity = shape_complexity(original, estimator=estimator)
     seconds = {"complexity": time.perf_counter() - start}
     grid_size = complexity.grid_size
-    if constraint == "error" and relative:
-        budget *= grid_size
+    budget = given.resolve(grid_size)
     max_bits = min(FORMAT_MAX_BITS[format], precision_bits(original[0], grid_size))
     if format in ("draco", "ply"):
         # Their decoded positions are float32: bits beyond float32's spacing at the
@@ -484,34 +472,6 @@ def compress_in_frame(mesh: MeshLike, **options: Any) -> CompressResult:
         message=message,
         frame=centre,
     )
-
-
-#: How the API takes each budget, for a budget given as text.
-_BUDGET_UNITS = {
-    "size": "bits (8 * 20_000 for 20 kB; meshbits.parse_size('20KB') converts)",
-    "error": "a length in the mesh's units (meshbits.parse_length('1mm') converts to meters)",
-    "vertices": "a vertex count",
-}
-
-
-def budget_number(constraint: str, value: Any) -> float:
-    """A budget given to the API as a float (an int beyond the float range is infinite,
-    and refused by the caller's range check).
-
-    Raises
-    ------
-    TypeError
-        If it is not a real number; text like ``"20KB"`` is told how the API takes it.
-    """
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(
-            f"the {constraint} budget must be a real number, got {value!r}: the API takes "
-            f"{_BUDGET_UNITS[constraint]}"
-        )
-    try:
-        return float(value)
-    except OverflowError:
-        return math.inf
 
 
 def _describe(constraint: str, amount: float) -> str:

@@ -40,3 +40,8 @@ __all__ = [
 class MeshFileError(MeshbitsError):
     """A file that cannot be read as a triangle mesh: unparsable, truncated, or holding no
     usable triangles (NaN coordinates, indices out of range, no faces)."""
+
+
+def one_line(err: BaseException) -> str:
+    """An exception's message on one line (its whitespace collapsed), or its class name."""
+    return " ".join(str(err).split()) or type(err).__name__

@@ -27,7 +27,7 @@ from .files import write_atomic
 from .mesh import MeshLike, as_mesh
 from .results import ArrayResult
 
-__all__ = ["ErrorMap", "colorbar", "error_map", "error_surface", "vertex_colors"]
+__all__ = ["ErrorMap", "colorbar", "error_map", "error_surface", "figure", "vertex_colors"]
 
 
 def _matplotlib() -> Any:
@@ -38,7 +38,7 @@ def _matplotlib() -> Any:
     return matplotlib
 
 
-def _figure(size_px: tuple[int, int], dpi: int) -> Any:
+def figure(size_px: tuple[int, int], dpi: int) -> Any:
     """A matplotlib Figure on its own Agg canvas, ``size_px`` = (width, height) pixels."""
     _matplotlib()
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -131,7 +131,7 @@ def error_surface(
     size = np.asarray(model.file_size(bb, vv, alpha=alpha, connectivity_bits=connectivity_bits))
     ridge = np.asarray(model.optimal_bits(v, k, alpha=alpha, connectivity_bits=connectivity_bits))
 
-    fig = _figure(size_px, dpi)
+    fig = figure(size_px, dpi)
     ax = fig.add_subplot(1, 1, 1)
     ax.set_xscale("log")
     e_levels = _decades(err, halves=True)
@@ -293,7 +293,7 @@ def colorbar(
     from matplotlib import colors
     from matplotlib.colorbar import ColorbarBase
 
-    fig = _figure(size_px, dpi)
+    fig = figure(size_px, dpi)
     ax = fig.add_axes((0.15, 0.05, 0.25, 0.9))
     bar = ColorbarBase(
         ax, cmap=cmap, norm=colors.Normalize(vmin=vmin, vmax=vmax), orientation="vertical"

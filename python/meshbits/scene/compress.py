@@ -7,7 +7,6 @@ times the largest scale of the nodes that instance it."""
 from __future__ import annotations
 
 import json
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
+from ..budget import Budget
 from ..codecs.attributes import NORMAL_TOLERANCE_DEGREES
 from ..codecs.primitive import PrimitiveEncoding
-from ..compress import budget_number
 from ..errors import MeshbitsError, MeshFileError
 from ..files import asset_bytes, check_not_an_input
 from ..formats.gltf.document import Document, PrimitiveData
@@ -40,7 +39,7 @@ from .primitives import (
     plan_jobs,
     world_box,
 )
-from .report import PrimitiveReport, SceneResult, budget_text, job_report, kept_report, scene_result
+from .report import PrimitiveReport, SceneResult, job_report, kept_report, scene_result
 from .shared_grid import Encodings, final_encodings
 from .split import RunAt, size_one, split_size
 
@@ -110,10 +109,10 @@ def compress_scene(
     SceneResult
     """
     start = time.perf_counter()
-    constraint, budget = _check_scene_arguments(error, size, codec, normal_tolerance, output)
+    given = _check_scene_arguments(error, size, relative, codec, normal_tolerance, output)
+    constraint = given.kind
     scene = _plan(source, output, normal_tolerance)
-    if constraint == "error" and relative:
-        budget *= scene.world_size
+    budget = given.resolve(scene.world_size)
     jobs = scene.jobs
     run_at = _run_at(jobs, codec, seed, certify, scene.margin, scene.unit, progress)
     if not jobs:
@@ -140,7 +139,7 @@ def compress_scene(
         scene.unit,
         start,
         scene.document.notes,
-        budget_text(error, size, relative),
+        given.describe(),
         [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(scene.kept),
     )
 
@@ -307,24 +306,20 @@ def _write(
 def _check_scene_arguments(
     error: float | None,
     size: float | None,
+    relative: bool,
     codec: str,
     normal_tolerance: float,
     output: str | Path | None,
-) -> tuple[str, float]:
-    """The constraint and its budget (as given), every argument checked."""
-    given = [n for n, v in (("error", error), ("size", size)) if v is not None]
-    if len(given) != 1:
-        raise MeshbitsError(f"give exactly one of error, size (got {given or 'none'})")
+) -> Budget:
+    """The budget (as given), every argument checked."""
+    given = Budget.from_options(error=error, size=size, relative=relative, kinds=("error", "size"))
     if codec not in CODECS:
         raise MeshbitsError(f"codec must be one of {CODECS}, got {codec!r}")
-    budget = budget_number(given[0], error if error is not None else size)
-    if not (math.isfinite(budget) and budget > 0):
-        raise MeshbitsError(f"the {given[0]} budget must be a positive finite number, got {budget}")
     if not (0 < normal_tolerance < 90):
         raise MeshbitsError(f"normal_tolerance must be in (0, 90) degrees, got {normal_tolerance}")
     if output is not None and Path(output).suffix.lower() not in (".glb", ".gltf"):
         raise MeshbitsError(f"a scene is written as .glb or .gltf, not {Path(output).suffix}")
-    return given[0], budget
+    return given
 
 
 def _size_search(

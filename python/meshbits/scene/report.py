@@ -21,7 +21,6 @@ from .primitives import Job, Outcome, distinct_vertices
 __all__ = [
     "PrimitiveReport",
     "SceneResult",
-    "budget_text",
     "job_report",
     "kept_report",
     "scene_result",
@@ -164,13 +163,6 @@ class SceneResult:
         out["budget_bytes"] = self.budget / 8 if self.constraint == "size" else None
         out["primitives"] = [p.to_dict() for p in self.primitives]
         return out
-
-
-def budget_text(error: Any, size: Any, relative: bool) -> str:
-    """The budget as the caller gave it, in words."""
-    if error is not None:
-        return f"{error:g} x S" if relative else (error if isinstance(error, str) else f"{error:g}")
-    return f"{size / 8:g} bytes"
 
 
 def _kept_error(document: Document, job: Job, certify: bool) -> tuple[float, float | None]:
