@@ -320,33 +320,18 @@ def compress(
         with K = 0, a flat one, is planned with :data:`meshbits.constants.FLAT_K`.)
     """
     given = Budget.from_options(size=size, error=error, vertices=vertices, relative=relative)
-    constraint = given.kind
-    if isinstance(max_iterations, bool) or not isinstance(max_iterations, numbers.Integral):
-        raise TypeError(f"max_iterations must be an integer, got {max_iterations!r}")
-    if max_iterations < 1:
-        raise MeshbitsError(f"max_iterations must be at least 1, got {max_iterations}")
-    if format not in FORMAT_MAX_BITS:
-        raise MeshbitsError(f"format must be one of {tuple(FORMAT_MAX_BITS)}, got {format!r}")
-    if method not in (*METHODS, "auto"):
-        raise MeshbitsError(f"method must be 'auto' or one of {METHODS}, got {method!r}")
+    _check_options(max_iterations, format, method)
     alpha, connectivity_bits = model.size_model_parameters(alpha, connectivity_bits)
     original = weld(as_mesh(mesh))
-    available = referenced_vertex_count(original[1])
     # A tangle (fan-triangulated polygons of hundreds of corners) takes fast-simplification
     # and the Hausdorff BVH minutes to hours: one of 245k faces on 507 vertices, 3 minutes.
-    check_untangled(len(original[1]), available, "compressed")
+    check_untangled(len(original[1]), referenced_vertex_count(original[1]), "compressed")
     start = time.perf_counter()
     complexity = shape_complexity(original, estimator=estimator)
     seconds = {"complexity": time.perf_counter() - start}
     grid_size = complexity.grid_size
     budget = given.resolve(grid_size)
-    max_bits = min(FORMAT_MAX_BITS[format], precision_bits(original[0], grid_size))
-    if format in ("draco", "ply"):
-        # Their decoded positions are float32: bits beyond float32's spacing at the
-        # coordinates' magnitude move no vertex.
-        max_bits = min(max_bits, precision_bits(_as_float32(original[0]), grid_size))
-    if format == "draco":
-        max_bits = min(max_bits, draco_max_bits(grid_size))
+    max_bits = _max_bits(original[0], grid_size, format)
 
     start = time.perf_counter()
     count = max(default_samples(len(original[1])), MIN_SAMPLES) if samples is None else int(samples)
@@ -355,7 +340,7 @@ def compress(
     search = Search(
         original,
         reference,
-        constraint=constraint,
+        constraint=given.kind,
         budget=budget,
         k=max(complexity.k, FLAT_K),
         grid_size=grid_size,
@@ -375,19 +360,56 @@ def compress(
             f"no {format} output of this mesh could be encoded: {err}"
             + _unrepresentable(format, original[0], grid_size)
         ) from None
-    if certify and constraint == "error":
+    if certify and given.kind == "error":
         search.certify_answer(CERTIFY_TOLERANCE * budget, max(2, max_iterations), progress)
     elif certify:
         search.bound_answer(ANSWER_RELATIVE_TOLERANCE, progress)
-    seconds |= search.seconds
+    return _result(search, original, complexity, budget, format, max_bits, seconds)
 
+
+def _check_options(max_iterations: Any, format: str, method: str) -> None:
+    """compress's options besides the budget and the size model, checked."""
+    if isinstance(max_iterations, bool) or not isinstance(max_iterations, numbers.Integral):
+        raise TypeError(f"max_iterations must be an integer, got {max_iterations!r}")
+    if max_iterations < 1:
+        raise MeshbitsError(f"max_iterations must be at least 1, got {max_iterations}")
+    if format not in FORMAT_MAX_BITS:
+        raise MeshbitsError(f"format must be one of {tuple(FORMAT_MAX_BITS)}, got {format!r}")
+    if method not in (*METHODS, "auto"):
+        raise MeshbitsError(f"method must be 'auto' or one of {METHODS}, got {method!r}")
+
+
+def _max_bits(vertices: np.ndarray, grid_size: float, format: str) -> int:
+    """The most bits B worth searching: the format's most, and no finer than the
+    coordinates' precision over the grid size (float32's for the formats whose decoded
+    positions are float32, Draco's quantization range)."""
+    max_bits = min(FORMAT_MAX_BITS[format], precision_bits(vertices, grid_size))
+    if format in ("draco", "ply"):
+        # Their decoded positions are float32: bits beyond float32's spacing at the
+        # coordinates' magnitude move no vertex.
+        max_bits = min(max_bits, precision_bits(_as_float32(vertices), grid_size))
+    if format == "draco":
+        max_bits = min(max_bits, draco_max_bits(grid_size))
+    return max_bits
+
+
+def _result(
+    search: Search,
+    original: tuple[np.ndarray, np.ndarray],
+    complexity: ShapeComplexity,
+    budget: float,
+    format: str,
+    max_bits: int,
+    seconds: dict[str, float],
+) -> CompressResult:
+    """The search's answer (the best result within the budget, else the closest) as a
+    :class:`CompressResult`, its message saying why where the budget was not met."""
+    constraint = search.constraint
     best = search.best()
     chosen = best or search.closest()
     met = best is not None
     encoded = search.encoded(chosen)
     level = search.levels[chosen.level]
-    step = level.grid_size / (2**encoded.bits - 1)
-    codes = encoded.codes.astype(np.uint16 if encoded.bits <= 16 else np.uint32)
     kept_area, kept_extent = kept_shape(original, (encoded.vertices, encoded.faces))
     skipped = tuple(
         f"level {index} ({search.levels[index].vertex_count} vertices) at {bits} bits: {why}"
@@ -409,9 +431,9 @@ def compress(
         bits=encoded.bits,
         vertices=encoded.vertices,
         faces=encoded.faces,
-        codes=codes,
+        codes=encoded.codes.astype(np.uint16 if encoded.bits <= 16 else np.uint32),
         origin=level.origin,
-        step=step,
+        step=level.grid_size / (2**encoded.bits - 1),
         error=chosen.measured_error,
         error_upper=chosen.measured_error_upper,
         size_bits=encoded.size_bits,
@@ -421,7 +443,7 @@ def compress(
         complexity=complexity,
         iterations=tuple(search.measurements),
         level=level.lod,
-        seconds=seconds,
+        seconds=seconds | search.seconds,
         source=level.source,
         max_bits=max_bits,
     )
