@@ -743,3 +743,94 @@ def test_primitives_on_a_shared_meshopt_grid_stay_within_their_budget(tmp_path):
     assert bound is not None and bound <= result.budget * (1 + 1e-12)
     measured = hausdorff_lower(gltf_world_mesh(source), gltf_world_mesh(out), samples=50_000)
     assert measured <= bound, (measured, bound)
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".gltf"])
+def test_codec_auto_keeps_the_smaller_file_of_the_two(scene_file, tmp_path, suffix):
+    """``codec="auto"``: the file is byte for byte the one the chosen codec writes on its
+    own, the smaller of the two within the budget, and the other's bytes are reported."""
+    glb, _ = scene_file
+    own = {}
+    for codec in ("draco", "meshopt"):
+        out = tmp_path / codec / f"out{suffix}"
+        out.parent.mkdir()
+        own[codec] = (compress_scene(glb, error=0.01, relative=True, codec=codec, output=out), out)
+    out = tmp_path / f"out{suffix}"
+    result = compress_scene(glb, error=0.01, relative=True, codec="auto", output=out)
+    smaller = min(own, key=lambda c: own[c][0].size_bytes)
+    assert all(r.met for r, _ in own.values())
+    assert result.codec == smaller and result.met
+    assert out.read_bytes() == own[smaller][1].read_bytes()
+    if suffix == ".gltf":
+        assert (
+            out.with_suffix(".bin").read_bytes() == own[smaller][1].with_suffix(".bin").read_bytes()
+        )
+    assert result.alternatives is not None
+    assert {c: a["size_bytes"] for c, a in result.alternatives.items()} == {
+        c: r.size_bytes for c, (r, _) in own.items()
+    }
+    assert f"codec auto: {smaller}" in result.message
+    # Nothing is left beside the output but the output.
+    assert sorted(p.name for p in tmp_path.iterdir() if p.is_file()) == sorted(
+        Path(f).name for f in result.files
+    )
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".meshbits-")]
+
+
+def test_the_better_codec_meets_the_budget_first():
+    from meshbits.scene import SceneResult, better_codec
+
+    def result(constraint, met, size, upper):
+        return SceneResult(
+            constraint=constraint, budget=1.0, met=met, message="", codec="x", world_error=upper,
+            size_bytes=size, input_bytes=0, primitives=(), seconds=0.0, world_error_upper=upper,
+        )  # fmt: skip
+
+    assert (
+        better_codec({"a": result("error", True, 10, 0.5), "b": result("error", True, 9, 0.9)})
+        == "b"
+    )
+    assert (
+        better_codec({"a": result("error", True, 10, 0.5), "b": result("error", False, 9, 2)})
+        == "a"
+    )
+    assert (
+        better_codec({"a": result("size", True, 10, 0.5), "b": result("size", True, 9, 0.6)}) == "a"
+    )
+    assert (
+        better_codec({"a": result("size", False, 10, 0.5), "b": result("size", True, 90, 0.6)})
+        == "b"
+    )
+    assert (
+        better_codec({"a": result("error", True, 9, 0.5), "b": result("error", True, 9, 0.1)})
+        == "a"
+    )
+
+
+def test_the_cli_chooses_the_codec_by_default(scene_file, tmp_path, capsys):
+    glb, _ = scene_file
+    out = tmp_path / "out.glb"
+    assert (
+        main(
+            [
+                "compress",
+                str(glb),
+                "--error",
+                "0.01",
+                "--relative",
+                "-o",
+                str(out),
+                "--json",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
+    report = json.loads(capsys.readouterr().out)
+    assert set(report["alternatives"]) == {"draco", "meshopt"}
+    assert report["codec"] in ("draco", "meshopt")
+    assert (
+        report["size_bytes"]
+        == out.stat().st_size
+        == min(a["size_bytes"] for a in report["alternatives"].values() if a["met"])
+    )

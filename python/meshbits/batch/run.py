@@ -63,7 +63,7 @@ def batch_options(
         raise MeshbitsError(f"format must be one of {FORMATS}, got {format!r}")
     if codec not in CODECS:
         raise MeshbitsError(f"codec must be one of {CODECS}, got {codec!r}")
-    if codec != "draco" and format not in SCENE_FORMATS:
+    if codec not in ("draco", "auto") and format not in SCENE_FORMATS:
         raise MeshbitsError(f"the {codec} codec applies to glb and gltf outputs, not {format}")
     if not isinstance(seed, int) or seed < 0:
         raise MeshbitsError(f"seed must be a whole number >= 0, got {seed!r}")

@@ -39,7 +39,7 @@ __all__ = [
 #: mesh), ``glb`` and ``gltf`` through :func:`meshbits.compress_scene` (the whole scene).
 FORMATS = ("drc", "ply", "glb", "gltf")
 SCENE_FORMATS = ("glb", "gltf")
-CODECS = ("draco", "meshopt")
+CODECS = ("draco", "meshopt", "auto")
 
 
 @dataclass(frozen=True)

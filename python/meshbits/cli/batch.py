@@ -52,9 +52,11 @@ def add_batch(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--codec",
-        choices=("draco", "meshopt"),
-        default="draco",
-        help="for glb/gltf: KHR_draco_mesh_compression (default) or EXT_meshopt_compression",
+        choices=("auto", "draco", "meshopt"),
+        default="auto",
+        help="for glb/gltf: auto (default: both tried per file, the smaller within the "
+        "budget kept), draco (KHR_draco_mesh_compression) or meshopt "
+        "(EXT_meshopt_compression)",
     )
     p.add_argument(
         "--workers",

@@ -105,10 +105,12 @@ def add_compress(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--codec",
-        choices=("draco", "meshopt"),
-        default="draco",
-        help="for .glb/.gltf: KHR_draco_mesh_compression (default) or EXT_meshopt_compression "
-        "with KHR_mesh_quantization",
+        choices=("auto", "draco", "meshopt"),
+        default="auto",
+        help="for .glb/.gltf: auto (default: the scene compressed with both, the smaller file "
+        "within the budget kept, and what the other gave reported), draco "
+        "(KHR_draco_mesh_compression) or meshopt (EXT_meshopt_compression with "
+        "KHR_mesh_quantization)",
     )
     p.add_argument(
         "--normal-tolerance",
@@ -216,7 +218,7 @@ def _run_compress(args: argparse.Namespace) -> int:
     suffix = output.suffix.lower() if output else ".drc"
     if suffix in _SCENE_FORMATS or (output is None and _is_scene_file(args.mesh)):
         return _run_compress_scene(args, budget)
-    if args.codec != "draco":
+    if args.codec not in ("auto", "draco"):
         raise UserError("--codec applies to .glb and .gltf outputs")
     if args.normal_tolerance is not None:
         raise UserError("--normal-tolerance applies to .glb and .gltf outputs")

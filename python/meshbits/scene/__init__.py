@@ -26,7 +26,7 @@ and :mod:`.info` (:func:`scene_info`, what a merged mesh leaves out).
 from __future__ import annotations
 
 from ..codecs.attributes import NORMAL_TOLERANCE_DEGREES, normal_bits, uv_bits
-from .compress import CODECS, compress_scene
+from .compress import CODECS, better_codec, compress_scene
 from .info import merged_away, omitted_by_merging, scene_info
 from .report import PrimitiveReport, SceneResult
 
@@ -35,6 +35,7 @@ __all__ = [
     "NORMAL_TOLERANCE_DEGREES",
     "PrimitiveReport",
     "SceneResult",
+    "better_codec",
     "compress_scene",
     "merged_away",
     "normal_bits",

@@ -6,9 +6,12 @@ times the largest scale of the nodes that instance it."""
 
 from __future__ import annotations
 
+import copy
 import json
+import os
+import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -43,10 +46,10 @@ from .report import PrimitiveReport, SceneResult, job_report, kept_report, scene
 from .shared_grid import Encodings, final_encodings
 from .split import RunAt, size_one, split_size
 
-__all__ = ["CODECS", "WORLD_ROUNDING", "compress_scene", "scene_document"]
+__all__ = ["CODECS", "WORLD_ROUNDING", "better_codec", "compress_scene", "scene_document"]
 
-#: Codecs of :func:`compress_scene`.
-CODECS = ("draco", "meshopt")
+#: Codecs of :func:`compress_scene`; ``"auto"`` tries both and keeps the better file.
+CODECS = ("draco", "meshopt", "auto")
 
 #: Relative float64 rounding of a world position a reader composes from the file (node
 #: transforms applied to float32 or integer positions), bounded generously: every
@@ -88,8 +91,10 @@ def compress_scene(
     size
         Size budget of the whole file, in **bits** (the CLI parses "100KB").
     codec
-        ``"draco"`` (``KHR_draco_mesh_compression``) or ``"meshopt"``
-        (``EXT_meshopt_compression`` with ``KHR_mesh_quantization``).
+        ``"draco"`` (``KHR_draco_mesh_compression``), ``"meshopt"``
+        (``EXT_meshopt_compression`` with ``KHR_mesh_quantization``), or ``"auto"``: the
+        scene compressed with each, and the better file kept (:func:`better_codec`): the
+        result's ``codec`` names it and ``alternatives`` what the other gave.
     normal_tolerance
         Largest angle (degrees) between a normal or tangent and its quantized value.
     output
@@ -110,6 +115,17 @@ def compress_scene(
     """
     start = time.perf_counter()
     given = _check_scene_arguments(error, size, relative, codec, normal_tolerance, output)
+    if codec == "auto":
+        options = dict(
+            error=error,
+            size=size,
+            relative=relative,
+            normal_tolerance=normal_tolerance,
+            seed=seed,
+            certify=certify,
+            progress=progress,
+        )
+        return _compress_with_either(source, output, options)
     constraint = given.kind
     scene = _plan(source, output, normal_tolerance)
     budget = given.resolve(scene.world_size)
@@ -142,6 +158,70 @@ def compress_scene(
         given.describe(),
         [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(scene.kept),
     )
+
+
+def better_codec(results: dict[str, SceneResult]) -> str:
+    """The codec whose file is better: one that meets the budget over one that does not;
+    then, for an error budget, the fewer bytes; for a size budget, the smaller certified
+    world error (the sampled one without certification). Ties go to the first given."""
+
+    def rank(name: str) -> tuple[bool, float]:
+        result = results[name]
+        if result.constraint == "size":
+            error = result.world_error_upper
+            return (not result.met, result.world_error if error is None else error)
+        return (not result.met, result.size_bytes)
+
+    return min(results, key=rank)
+
+
+def _compress_with_either(
+    source: str | Path | Document, output: str | Path | None, options: dict[str, Any]
+) -> SceneResult:
+    """``codec="auto"``: the scene compressed with Draco and with meshopt, each written
+    into a folder of its own beside ``output``, and the better file moved into place
+    (its ``.bin`` with it). The result is the chosen codec's, with ``alternatives``
+    saying what each gave and its message which was chosen."""
+    if output is not None and not isinstance(source, Document):
+        check_not_an_input(output, source)
+    results: dict[str, SceneResult] = {}
+    folder = None if output is None else Path(output).resolve().parent
+    with tempfile.TemporaryDirectory(dir=folder, prefix=".meshbits-") as scratch:
+        for codec in ("draco", "meshopt"):
+            target = None if output is None else Path(scratch) / codec / Path(output).name
+            if target is not None:
+                target.parent.mkdir()
+            own = copy.deepcopy(source) if isinstance(source, Document) else source
+            results[codec] = compress_scene(own, codec=codec, output=target, **options)
+        chosen = better_codec(results)
+        files = []
+        for name in results[chosen].files:
+            destination = Path(output).with_name(Path(name).name) if output else Path(name)
+            os.replace(name, destination)
+            files.append(str(destination))
+    other = next(c for c in results if c != chosen)
+    note = (
+        f"; codec auto: {chosen} ({results[chosen].size_bytes} bytes) over {other} "
+        f"({results[other].size_bytes} bytes{'' if results[other].met else ', unmet'})"
+    )
+    return replace(
+        results[chosen],
+        message=results[chosen].message + note,
+        files=tuple(files),
+        seconds=sum(r.seconds for r in results.values()),
+        alternatives={codec: _alternative(result) for codec, result in results.items()},
+    )
+
+
+def _alternative(result: SceneResult) -> dict[str, Any]:
+    """What one codec gave, for ``SceneResult.alternatives``."""
+    return {
+        "size_bytes": result.size_bytes,
+        "met": result.met,
+        "world_error": result.world_error,
+        "world_error_upper": result.world_error_upper,
+        "seconds": result.seconds,
+    }
 
 
 @dataclass

@@ -134,6 +134,9 @@ class SceneResult:
         unit of ``budget``: ``"bits"`` for a size budget, else ``length_unit``.
     size_bytes : int
         The written file (GLB; for ``.gltf``, the JSON plus its buffer).
+    alternatives : dict or None
+        With ``codec="auto"``: each codec's ``size_bytes``, ``met``, ``world_error``,
+        ``world_error_upper`` and ``seconds``; ``codec`` is the one kept.
     input_bytes : int
     primitives : tuple of PrimitiveReport
     seconds : float
@@ -155,6 +158,7 @@ class SceneResult:
     notes: tuple[str, ...] = ()
     budget_text: str = ""
     budget_unit: str = ""
+    alternatives: dict[str, dict[str, Any]] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready; a size budget is also given in bytes (``budget_bytes``), as
