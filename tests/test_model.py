@@ -727,47 +727,6 @@ def test_guaranteed_bits_bounds_a_real_quantizer():
         assert np.linalg.norm(lo + q1 * s / n1 - centre) > e
 
 
-# --- sizes -------------------------------------------------------------------------------
-
-
-@pytest.mark.parametrize(
-    ("text", "bits"),
-    [
-        ("100KB", 800_000.0),
-        ("100kB", 800_000.0),
-        ("2MiB", 16 * 2**20),
-        ("2 MiB", 16 * 2**20),
-        ("80kbit", 80_000.0),
-        ("1.5 kbits", 1_500.0),
-        ("1e3 bytes", 8_000.0),
-        ("12B", 96.0),
-        ("1GB", 8e9),
-        ("3 bits", 3.0),
-        (".5KiB", 4096.0),
-    ],
-)
-def test_parse_size(text, bits):
-    assert meshbits.parse_size(text) == bits
-
-
-@pytest.mark.parametrize(
-    ("text", "match"),
-    [
-        ("100", "needs a unit"),
-        ("100kb", "ambiguous"),
-        ("100 b", "ambiguous"),
-        ("100XB", "unknown prefix"),
-        ("0KB", "positive"),
-        ("-5KB", "cannot read"),
-        ("KB", "cannot read"),
-        ("1e999KB", "positive and finite"),
-    ],
-)
-def test_parse_size_refuses(text, match):
-    with pytest.raises(ValueError, match=match):
-        meshbits.parse_size(text)
-
-
 # --- public names ------------------------------------------------------------------------
 
 
@@ -961,20 +920,6 @@ def test_plans_beyond_the_float64_range_are_refused(plan, args, kwargs):
 def test_plans_near_the_float64_range_still_answer():
     plan = model.plan_for_error(1e-300, 10.0, grid_size=1.0, alpha=1.0, connectivity_bits=4.0)
     assert 1000 < plan.bits < model.MODEL_MAX_BITS and math.isfinite(plan.vertices)
-
-
-@pytest.mark.parametrize(
-    ("text", "length"),
-    [("0.002", 0.002), ("1mm", 0.001), (" 0.5 cm", 0.005), ("2in", 0.0508), ("1e-3M", 0.001)],
-)
-def test_parse_length(text, length):
-    assert meshbits.parse_length(text) == pytest.approx(length, rel=1e-12)
-
-
-@pytest.mark.parametrize("text", ["", "mm", "-1mm", "0", "1 parsec", "nan", "inf m"])
-def test_parse_length_refuses(text):
-    with pytest.raises(meshbits.MeshbitsError, match="length"):
-        meshbits.parse_length(text)
 
 
 def test_the_size_model_parameters_are_checked_as_single_numbers():
