@@ -5,6 +5,10 @@ The error ``E`` of the paper is the Hausdorff distance ``H(O, A)`` between the o
 ``h(A, B) = max over p in A of min over q in B of |p - q|``. :func:`hausdorff` measures it
 on seeded samples of both surfaces, with exact float64 point-to-triangle distances found
 through a BVH (``rust/bvh/``), and can certify an upper bound.
+
+One concept: the sampled Hausdorff distance, with its parts (closest points on a mesh, the
+seeded surface samples) and :class:`Reference`, the same measurement against many
+candidates.
 """
 
 from __future__ import annotations
