@@ -1,5 +1,4 @@
-"""The budget value (meshbits.budget) and the fixed-width plans built on it
-(meshbits.planning)."""
+"""The budget value (meshbits.budget): one budget checked once, resolved against S."""
 
 from __future__ import annotations
 
@@ -9,9 +8,6 @@ import pytest
 
 import meshbits
 from meshbits.budget import Budget
-from meshbits.codecs import fixed_width_size_bits
-from meshbits.constants import FORMAT_MAX_BITS, MODEL_MIN_VERTICES
-from meshbits.planning import FixedWidthSizes, plan_fixed_width
 
 
 def test_one_budget_is_checked_once_and_resolved_against_s():
@@ -57,24 +53,3 @@ def test_text_budgets_and_a_stray_relative_where_an_entry_point_asks():
         Budget.from_options(size="4KB", relative=True, parse_text=True, refuse_stray_relative=True)
     with pytest.raises(meshbits.MeshbitsError, match=r"exactly one of error, size \(got none\)"):
         Budget.from_options(vertices=5, kinds=kinds)
-
-
-@pytest.mark.parametrize("fmt", ["ply", "glb"])
-def test_a_fixed_width_plan_spends_a_size_on_vertices(fmt):
-    sizes = FixedWidthSizes(fmt, 2.0)
-    plan = plan_fixed_width(Budget.from_options(size=48_000), 10.0, 1.0, fmt, 2.0)
-    assert plan.bits == FORMAT_MAX_BITS[fmt] and plan.constraint == "size"
-    assert plan.file_size == pytest.approx(48_000, rel=1e-9) and plan.file_size <= 48_000
-    assert plan.file_size == fixed_width_size_bits(fmt, plan.bits, plan.vertices, 2 * plan.vertices)
-    assert plan.error == plan.quantization_error + plan.tessellation_error
-    with pytest.raises(meshbits.MeshbitsError, match="cannot hold a tetrahedron"):
-        sizes.vertices_for_size(sizes.size_bits(MODEL_MIN_VERTICES) - 1)
-
-
-def test_a_fixed_width_plan_for_an_error_meets_it():
-    plan = plan_fixed_width(Budget.from_options(error=0.01, relative=True), 10.0, 2.0, "ply", 2.0)
-    assert plan.budget == 0.02 and plan.error == pytest.approx(0.02, rel=1e-9)
-    with pytest.raises(meshbits.MeshbitsError, match="not below the grid size"):
-        plan_fixed_width(Budget.from_options(error=3.0), 10.0, 2.0, "ply", 2.0)
-    with pytest.raises(meshbits.MeshbitsError, match="quantization error"):
-        plan_fixed_width(Budget.from_options(error=1e-12), 10.0, 2.0, "ply", 2.0)

@@ -11,6 +11,9 @@ adjust, until the budget is met at the fewest bytes (or the least error) found.
    distance to the original (sampled; its BVH and samples are built once).
 4. Keep the best result that meets the budget; :attr:`CompressResult.met` says plainly
    whether one did.
+
+One concept: compressing one mesh to one budget, :func:`compress` and the
+:class:`CompressResult` it returns with the notes its message is made of.
 """
 
 from __future__ import annotations

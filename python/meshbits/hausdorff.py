@@ -5,6 +5,10 @@ The error ``E`` of the paper is the Hausdorff distance ``H(O, A)`` between the o
 ``h(A, B) = max over p in A of min over q in B of |p - q|``. :func:`hausdorff` measures it
 on seeded samples of both surfaces, with exact float64 point-to-triangle distances found
 through a BVH (``rust/bvh/``), and can certify an upper bound.
+
+One concept: the sampled Hausdorff distance, with its parts (closest points on a mesh, the
+seeded surface samples) and :class:`Reference`, the same measurement against many
+candidates.
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ from __future__ import annotations
 import math
 import numbers
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -493,11 +498,30 @@ def hausdorff(
     refine_budget = _check_count(refine_budget, "refine_budget")
     bounds, tolerance, relative_tolerance = _bounds_asked(bounds, tolerance, relative_tolerance)
 
+    say = _progress_lines(progress)
+    meshes = {"A": as_mesh(a), "B": as_mesh(b)}
+    trees = _build_trees(meshes, say)
+    # What both directions are asked, after their source, target, sample count and seed.
+    asked = (statistics, bounds, tolerance, refine_budget, return_samples, None, relative_tolerance)
+    a_to_b = _measure_direction("A", "B", meshes, trees, samples, seed, asked, say)
+    b_to_a = _measure_direction("B", "A", meshes, trees, samples, seed, asked, say)
+    return _symmetric(a_to_b, b_to_a, seed, statistics, tolerance, relative_tolerance)
+
+
+def _progress_lines(progress: ProgressCallback | None) -> Callable[[str], None]:
+    """A function passing each line to ``progress`` as a ``"hausdorff"`` event (if any)."""
+
     def say(line: str) -> None:
         if progress is not None:
             progress(Progress("hausdorff", line))
 
-    meshes = {"A": as_mesh(a), "B": as_mesh(b)}
+    return say
+
+
+def _build_trees(
+    meshes: dict[str, tuple[np.ndarray, np.ndarray]], say: Callable[[str], None]
+) -> dict[str, Any]:
+    """One BVH per named mesh (built together), each checked for overlapping boxes."""
     start = time.perf_counter()
     sizes = {name: f"{len(faces):,}" for name, (_, faces) in meshes.items()}
     say(f"building the BVHs of A ({sizes['A']} faces) and B ({sizes['B']} faces)")
@@ -505,31 +529,29 @@ def hausdorff(
     for name, (_, faces) in meshes.items():
         refuse_overlap(trees[name].box_overlap, len(faces), f"mesh {name.lower()}")
     say(f"built the BVHs in {time.perf_counter() - start:.2f} s")
-    directions = {}
-    for source, target in (("A", "B"), ("B", "A")):
-        vertices, faces = meshes[source]
-        count = default_samples(len(faces)) if samples is None else samples
-        start = time.perf_counter()
-        say(f"{source} -> {target}: {count:,} area samples + vertices")
-        raw = _core.hausdorff_directed(
-            vertices,
-            faces,
-            trees[target],
-            count,
-            seed,
-            statistics,
-            bounds,
-            tolerance,
-            refine_budget,
-            return_samples,
-            None,
-            relative_tolerance,
-        )
-        say(f"{source} -> {target}: max {raw['max']:.6g} in {time.perf_counter() - start:.2f} s")
-        directions[source] = _directed(raw)
-    return _symmetric(
-        directions["A"], directions["B"], seed, statistics, tolerance, relative_tolerance
-    )
+    return trees
+
+
+def _measure_direction(
+    source: str,
+    target: str,
+    meshes: dict[str, tuple[np.ndarray, np.ndarray]],
+    trees: dict[str, Any],
+    samples: int | None,
+    seed: int,
+    asked: tuple[Any, ...],
+    say: Callable[[str], None],
+) -> DirectedHausdorff:
+    """``h(source, target)``: ``samples`` area samples (default :func:`default_samples`)
+    of the source mesh, plus its vertices, against the target's BVH; ``asked`` is the rest
+    of ``_core.hausdorff_directed``'s arguments."""
+    vertices, faces = meshes[source]
+    count = default_samples(len(faces)) if samples is None else samples
+    start = time.perf_counter()
+    say(f"{source} -> {target}: {count:,} area samples + vertices")
+    raw = _core.hausdorff_directed(vertices, faces, trees[target], count, seed, *asked)
+    say(f"{source} -> {target}: max {raw['max']:.6g} in {time.perf_counter() - start:.2f} s")
+    return _directed(raw)
 
 
 def _symmetric(

@@ -4,6 +4,9 @@ Given the shape complexity ``K`` of a mesh and one constraint (a file size ``F``
 ``E`` or a vertex count ``V``), find the bits per coordinate ``B`` and the vertex count
 ``V`` that minimise the predicted error for the size, or the size for the error.
 
+One concept: the paper's analytic model, its error and size functions and the optimal
+allocations (:class:`Allocation`) solved from them; nothing here reads a mesh or a file.
+
 Units: sizes in bits; errors are lengths in the unit of the grid size ``S`` (the side of
 the quantization cube), which every error function and plan requires as ``grid_size``:
 pass the mesh's ``ShapeComplexity.grid_size`` for errors in mesh units (as ``compress``

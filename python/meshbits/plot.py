@@ -134,53 +134,13 @@ def error_surface(
     fig = figure(size_px, dpi)
     ax = fig.add_subplot(1, 1, 1)
     ax.set_xscale("log")
-    e_levels = _decades(err, halves=True)
     filled = ax.contourf(vv, bb, np.log10(err), levels=64, cmap="viridis_r")
-    lines = ax.contour(vv, bb, err, levels=e_levels, colors="black", linewidths=0.8)
-    # Labels apart from each other: iso-error labels near the right edge, where those
-    # curves run flat; iso-size labels low in the plot, where those run steep.
-    v_error_labels = v_lo * (v_hi / v_lo) ** 0.88
-    error_column = np.asarray(model.error(b, v_error_labels, k, grid_size))
-    b_top_labels = b_hi - 0.06 * (b_hi - b_lo)
-    error_row = np.asarray(model.error(b_top_labels, v, k, grid_size))
-    error_label_at = []
-    for level in lines.levels:
-        b_at = float(np.interp(-np.log(level), -np.log(error_column), b))
-        if b_at < b_top_labels:
-            error_label_at.append((v_error_labels, b_at))
-        else:  # the curve turns below the top edge left of the column: label it there
-            log_v = np.interp(-np.log(level), -np.log(error_row), np.log(v))
-            error_label_at.append((float(np.exp(log_v)), b_top_labels))
-    error_name = "E/S" if grid_size == 1.0 else "E"
-    ax.clabel(lines, fmt=lambda x: f"{error_name}={x:.0e}", fontsize=7, manual=error_label_at)
-    f_levels = _decades(size, halves=False)
-    size_lines = ax.contour(
-        vv, bb, size, levels=f_levels, colors="white", linewidths=0.9, linestyles="dashed"
-    )
-    b_size_labels = b_lo + 0.12 * (b_hi - b_lo)
-    bits_per_vertex = float(
-        model.file_size(b_size_labels, 1.0, alpha=alpha, connectivity_bits=connectivity_bits)
-    )
-    size_label_at = [(level / bits_per_vertex, b_size_labels) for level in size_lines.levels]
-    ax.clabel(
-        size_lines,
-        fmt=lambda x: f"F={x:.0e} bits",
-        fontsize=7,
-        colors="white",
-        manual=[(x, y) for x, y in size_label_at if v_lo < x < v_hi],
-    )
+    grid = _Grid(v=v, b=b, vv=vv, bb=bb, v_range=(v_lo, v_hi), b_range=(b_lo, b_hi))
+    _iso_error_contours(ax, grid, err, k=k, grid_size=grid_size)
+    _iso_size_contours(ax, grid, size, alpha=alpha, connectivity_bits=connectivity_bits)
     inside = (ridge >= b_lo) & (ridge <= b_hi)
     ax.plot(v[inside], ridge[inside], color="red", linewidth=2.0, label="optimal B(V) (Eq. 12)")
-    for pv, pb, label in points:
-        ax.plot([pv], [pb], marker="o", color="red", markeredgecolor="white")
-        ax.annotate(
-            str(label),
-            (pv, pb),
-            textcoords="offset points",
-            xytext=(6, 6),
-            color="white",
-            fontsize=8,
-        )
+    _mark_points(ax, points)
     colorbar_ = fig.colorbar(filled, ax=ax)
     unit = "E / S" if grid_size == 1.0 else "E (length)"
     colorbar_.set_label(f"log10 {unit}")
@@ -198,6 +158,83 @@ def error_surface(
     if path is not None:
         _save_png(fig, path, dpi)
     return fig
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """The (V, B) grid of :func:`error_surface`: the axes ``v`` (log-spaced) and ``b``,
+    their mesh ``vv, bb``, and the plotted ranges."""
+
+    v: np.ndarray
+    b: np.ndarray
+    vv: np.ndarray
+    bb: np.ndarray
+    v_range: tuple[float, float]
+    b_range: tuple[float, float]
+
+
+def _iso_error_contours(
+    ax: Any, grid: _Grid, err: np.ndarray, *, k: float, grid_size: float
+) -> None:
+    """Black iso-error contours at the decades (and 3 x 10^n) inside ``err``, labelled near
+    the right edge, where those curves run flat, or along the top edge where a curve turns
+    below it before reaching that column."""
+    v, b, vv, bb = grid.v, grid.b, grid.vv, grid.bb
+    (v_lo, v_hi), (b_lo, b_hi) = grid.v_range, grid.b_range
+    e_levels = _decades(err, halves=True)
+    lines = ax.contour(vv, bb, err, levels=e_levels, colors="black", linewidths=0.8)
+    v_error_labels = v_lo * (v_hi / v_lo) ** 0.88
+    error_column = np.asarray(model.error(b, v_error_labels, k, grid_size))
+    b_top_labels = b_hi - 0.06 * (b_hi - b_lo)
+    error_row = np.asarray(model.error(b_top_labels, v, k, grid_size))
+    error_label_at = []
+    for level in lines.levels:
+        b_at = float(np.interp(-np.log(level), -np.log(error_column), b))
+        if b_at < b_top_labels:
+            error_label_at.append((v_error_labels, b_at))
+        else:  # the curve turns below the top edge left of the column: label it there
+            log_v = np.interp(-np.log(level), -np.log(error_row), np.log(v))
+            error_label_at.append((float(np.exp(log_v)), b_top_labels))
+    error_name = "E/S" if grid_size == 1.0 else "E"
+    ax.clabel(lines, fmt=lambda x: f"{error_name}={x:.0e}", fontsize=7, manual=error_label_at)
+
+
+def _iso_size_contours(
+    ax: Any, grid: _Grid, size: np.ndarray, *, alpha: float, connectivity_bits: float
+) -> None:
+    """Dashed white iso-size contours at the powers of ten inside ``size`` (bits), labelled
+    low in the plot, where those curves run steep (apart from the iso-error labels)."""
+    (v_lo, v_hi), (b_lo, b_hi) = grid.v_range, grid.b_range
+    f_levels = _decades(size, halves=False)
+    size_lines = ax.contour(
+        grid.vv, grid.bb, size, levels=f_levels, colors="white", linewidths=0.9, linestyles="dashed"
+    )
+    b_size_labels = b_lo + 0.12 * (b_hi - b_lo)
+    bits_per_vertex = float(
+        model.file_size(b_size_labels, 1.0, alpha=alpha, connectivity_bits=connectivity_bits)
+    )
+    size_label_at = [(level / bits_per_vertex, b_size_labels) for level in size_lines.levels]
+    ax.clabel(
+        size_lines,
+        fmt=lambda x: f"F={x:.0e} bits",
+        fontsize=7,
+        colors="white",
+        manual=[(x, y) for x, y in size_label_at if v_lo < x < v_hi],
+    )
+
+
+def _mark_points(ax: Any, points: Sequence[tuple[float, float, str]]) -> None:
+    """A red dot and a white label at each ``(V, B, label)``."""
+    for pv, pb, label in points:
+        ax.plot([pv], [pb], marker="o", color="red", markeredgecolor="white")
+        ax.annotate(
+            str(label),
+            (pv, pb),
+            textcoords="offset points",
+            xytext=(6, 6),
+            color="white",
+            fontsize=8,
+        )
 
 
 def _save_png(fig: Any, path: str | Path, dpi: int) -> Path:

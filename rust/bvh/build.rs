@@ -11,8 +11,10 @@ use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::builder::build_bvh2;
 use rayon::prelude::*;
 
-use super::shared_boxes::{SHARED, SharedBoxes};
-use super::tree::{IDENTICAL, Pair, TriangleTree};
+use super::primitives::{Primitive, Primitives};
+use super::runs::find_runs;
+use super::shared_boxes::SharedBoxes;
+use super::tree::{IDENTICAL, Pair, RUN, TriangleTree};
 use crate::closest::PreparedTriangle;
 use crate::error::{MAX_EXTENT, MeshError, check_finite, check_indices};
 
@@ -81,9 +83,9 @@ impl TriangleTree {
     ) -> Result<Self, MeshError> {
         check_finite(vertices)?;
         check_indices(faces, vertices.len())?;
-        if faces.len() >= u32::MAX as usize / 2 {
+        if faces.len() >= RUN as usize {
             return Err(MeshError::Parameter(format!(
-                "{} faces exceed 2**31",
+                "{} faces exceed 2**30",
                 faces.len()
             )));
         }
@@ -107,22 +109,28 @@ impl TriangleTree {
             .par_iter()
             .map(|f| outward_box([local(f[0]), local(f[1]), local(f[2])], pad))
             .collect();
-        // Bitwise-equal recentred corners: equal faces, or faces collapsed to one point.
-        let corners = |face: u32| {
-            let f = faces[face as usize];
-            [0, 1, 2].map(|k| local(f[k]).to_array().map(f64::to_bits))
+        let runs = if merge_identical {
+            // Input coordinates carry rounding relative to their size, not the mesh's.
+            let scale = half_extent.max(centre.abs().max_element());
+            find_runs(faces, vertices.len(), local, &boxes, scale)
+        } else {
+            Vec::new()
         };
-        let shared = SharedBoxes::find(&boxes, |face| {
+        let primitives = Primitives::new(faces, &boxes, runs, |face| {
             if merge_identical {
-                corners(face)
+                // Bitwise-equal recentred corners: equal faces, or faces collapsed to one
+                // point.
+                let f = faces[face as usize];
+                [0, 1, 2].map(|k| local(f[k]).to_array().map(f64::to_bits))
             } else {
                 [[u64::from(face); 3]; 3]
             }
         });
-        let bvh = match &shared {
-            Some(shared) => build_bvh2(&shared.boxes, BUILD_PARAMS, &mut Duration::default()),
-            None => build_bvh2(&boxes, BUILD_PARAMS, &mut Duration::default()),
-        };
+        let bvh = build_bvh2(
+            primitives.boxes(&boxes),
+            BUILD_PARAMS,
+            &mut Duration::default(),
+        );
 
         let mut tree = TriangleTree {
             centre,
@@ -137,12 +145,13 @@ impl TriangleTree {
             parent: Vec::new(),
             leaf_pair: Vec::with_capacity(faces.len()),
             min_face: Vec::new(),
+            runs: Vec::new(),
             depth: 0,
             vertex_count: vertices.len(),
             box_overlap: overlap_of_boxes(&boxes, hi - lo),
         };
         if !bvh.nodes.is_empty() {
-            tree.copy_from(&bvh, shared.as_ref());
+            tree.copy_from(&bvh, &primitives);
             tree.triangles = tree
                 .faces
                 .par_iter()
@@ -160,12 +169,12 @@ impl TriangleTree {
     /// Copies obvhs's nodes into sibling pairs in depth-first order, and the face indices
     /// into leaf order (the triangles are then prepared in parallel, in that order); then
     /// each child box's smallest face index.
-    fn copy_from(&mut self, bvh: &Bvh2, shared: Option<&SharedBoxes>) {
+    fn copy_from(&mut self, bvh: &Bvh2, primitives: &Primitives) {
         let root = &bvh.nodes[0];
         self.root_min = root.aabb.min.to_array();
         self.root_max = root.aabb.max.to_array();
         if root.is_leaf() {
-            (self.root_link, self.root_count) = self.copy_leaf(bvh, shared, 0, u32::MAX, 0);
+            (self.root_link, self.root_count) = self.copy_leaf(bvh, primitives, 0, u32::MAX, 0);
             self.depth = self.depth.max(1);
         } else {
             // (obvhs index of the first child, our pair index, depth)
@@ -184,7 +193,7 @@ impl TriangleTree {
                     built.max[k] = node.aabb.max.to_array();
                     if node.is_leaf() {
                         (built.link[k], built.count[k]) =
-                            self.copy_leaf(bvh, shared, index, pair, depth);
+                            self.copy_leaf(bvh, primitives, index, pair, depth);
                     } else {
                         let child = self.pairs.len() as u32;
                         self.pairs.push(Pair::default());
@@ -202,8 +211,8 @@ impl TriangleTree {
             let pair = self.pairs[index];
             for k in 0..2 {
                 let (link, count) = (pair.link[k] as usize, pair.count[k]);
-                self.min_face[2 * index + k] = if count == 1 || count & IDENTICAL != 0 {
-                    // One triangle, or identical ones in face order.
+                self.min_face[2 * index + k] = if count == 1 || count & (IDENTICAL | RUN) != 0 {
+                    // One triangle, or identical ones or a run in face order.
                     self.faces[link]
                 } else if count > 0 {
                     let faces = &self.faces[link..link + count as usize];
@@ -223,11 +232,12 @@ impl TriangleTree {
     /// of identical triangles. One item becomes one leaf, its faces in order, flagged
     /// [`IDENTICAL`] when it holds more than one; several items (distinct triangles
     /// closer together than the f32 boxes resolve) become a balanced subtree of such
-    /// leaves under the same box, the items of smaller faces on the first side.
+    /// leaves under the same box, the items of smaller faces on the first side. A run
+    /// becomes one leaf, its faces in order, flagged [`RUN`].
     fn copy_leaf(
         &mut self,
         bvh: &Bvh2,
-        shared: Option<&SharedBoxes>,
+        primitives: &Primitives,
         index: u32,
         pair: u32,
         depth: usize,
@@ -236,30 +246,32 @@ impl TriangleTree {
         let first = node.first_index as usize;
         let prims = &bvh.primitive_indices[first..first + node.prim_count as usize];
         let slot = self.faces.len() as u32;
-        match (shared, prims) {
-            (None, _) => self.faces.extend_from_slice(prims),
-            (Some(shared), &[b]) => {
-                let entry = shared.entry[b as usize];
-                if entry & SHARED == 0 {
-                    self.faces.push(entry);
-                } else {
-                    let g = (entry & !SHARED) as usize;
+        match prims {
+            &[b] => match primitives.kind(b) {
+                Primitive::Face(face) => self.faces.push(face),
+                Primitive::Shared(shared, g) => {
                     let items = shared.groups[g]..shared.groups[g + 1];
                     let aabb = (node.aabb.min.to_array(), node.aabb.max.to_array());
                     return self.copy_items(shared, aabb, items, pair, depth);
                 }
-            }
+                Primitive::Run(run) => {
+                    self.faces.extend_from_slice(&run.faces);
+                    self.leaf_pair.resize(self.faces.len(), pair);
+                    self.runs.push(run.placed(slot));
+                    return (slot, run.faces.len() as u32 | RUN);
+                }
+            },
             // Several boxes in one leaf (not with one triangle per leaf): a plain leaf.
-            (Some(shared), _) => {
+            _ => {
                 for &b in prims {
-                    let entry = shared.entry[b as usize];
-                    if entry & SHARED == 0 {
-                        self.faces.push(entry);
-                    } else {
-                        let g = (entry & !SHARED) as usize;
-                        for item in shared.groups[g]..shared.groups[g + 1] {
-                            self.faces.extend_from_slice(shared.item(item));
+                    match primitives.kind(b) {
+                        Primitive::Face(face) => self.faces.push(face),
+                        Primitive::Shared(shared, g) => {
+                            for item in shared.groups[g]..shared.groups[g + 1] {
+                                self.faces.extend_from_slice(shared.item(item));
+                            }
                         }
+                        Primitive::Run(run) => self.faces.extend_from_slice(&run.faces),
                     }
                 }
             }

@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 
-use super::tree::{IDENTICAL, TriangleTree};
+use super::tree::{IDENTICAL, RUN, TriangleTree};
 
 /// Levels above the hint's leaf where a hinted search starts before climbing to the root
 /// (a subtree of up to `2^(RESTART_LEVELS + 1)` triangles; 2, 4, 6 and 9 measured alike).
@@ -44,23 +44,42 @@ impl TriangleTree {
         SearchStack(Vec::with_capacity(self.depth + 1))
     }
 
-    /// Tests the triangles of the leaf `first`, `count` (flag included: only the first of
-    /// identical ones) against `p`, keeping the best.
+    /// Tests the triangles of the leaf `first`, `count` (flags included: only the first of
+    /// identical ones; a run's one face for `p`), keeping the best.
     #[inline(always)]
     fn test_leaf(&self, p: DVec3, first: u32, count: u32, best: &mut Nearest) {
+        if count & RUN != 0 {
+            return self.test_slot(p, first, best);
+        }
         let tested = if count & IDENTICAL != 0 { 1 } else { count };
-        #[cfg(test)]
-        counters::count_tested(tested);
         for slot in first..first + tested {
-            let (q, d2) = self.triangles[slot as usize].closest(p);
-            if d2 < best.d2 || (d2 == best.d2 && self.faces[slot as usize] < best.face) {
-                *best = Nearest {
-                    slot,
-                    face: self.faces[slot as usize],
-                    d2,
-                    point: q,
-                };
-            }
+            self.test_triangle(p, slot, best);
+        }
+    }
+
+    /// Tests the triangle in `slot` or, when a run holds it, the run's face for `p` (so a
+    /// hint inside a run answers as the run does).
+    #[inline(always)]
+    fn test_slot(&self, p: DVec3, slot: u32, best: &mut Nearest) {
+        match self.run_holding(slot) {
+            Some(run) => self.test_triangle(p, run.slot_for(p), best),
+            None => self.test_triangle(p, slot, best),
+        }
+    }
+
+    /// Tests the triangle in `slot`, keeping the smaller `(d², face)`.
+    #[inline(always)]
+    fn test_triangle(&self, p: DVec3, slot: u32, best: &mut Nearest) {
+        #[cfg(test)]
+        counters::count_tested(1);
+        let (q, d2) = self.triangles[slot as usize].closest(p);
+        if d2 < best.d2 || (d2 == best.d2 && self.faces[slot as usize] < best.face) {
+            *best = Nearest {
+                slot,
+                face: self.faces[slot as usize],
+                d2,
+                point: q,
+            };
         }
     }
 
@@ -94,7 +113,7 @@ impl TriangleTree {
             point: p,
         };
         if (hint as usize) < self.triangles.len() {
-            self.test_leaf(p, hint, 1, &mut best);
+            self.test_slot(p, hint, &mut best);
             if best.d2 < stop_below_d2 {
                 return Some(best);
             }

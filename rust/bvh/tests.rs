@@ -1,12 +1,13 @@
 //! The tree's tests: every size from 1 to 100 validated and matched against brute force,
-//! hints, early exits, ties, collapsed meshes (with bounds on the work per query), far
-//! from the origin.
+//! hints, early exits, ties, collapsed meshes (with bounds on the work per query), meshes
+//! collapsed onto a line, far from the origin.
 
 use glam::DVec3;
 
 use super::TriangleTree;
+use super::runs::RUN_WIDTH;
 use super::search::counters::counted;
-use super::tree::IDENTICAL;
+use super::tree::{IDENTICAL, RUN};
 use crate::closest::closest_point_on_triangle;
 
 fn lcg(state: &mut u64) -> f64 {
@@ -399,6 +400,123 @@ fn a_partly_collapsed_mesh_is_exact_and_bounded() {
     assert!(shared, "no box holds several sets");
     // 25 triangles, 74 pairs per query.
     assert_bounded_and_exact(&tree, &v, &f, 60.0, 160.0);
+}
+
+/// A grid of `2 n²` faces collapsed onto the line `origin + t dir`: the vertex `(x, y)` of
+/// the unit square goes to `t = x + 0.37 y`. Every face is a segment, and about `n / 2`
+/// of them overlap at each point of the line (a bunny on a diagonal: about 450).
+fn on_a_line(n: u32, origin: [f64; 3], dir: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let (v, f) = crate::test_meshes::grid(n, |_, _| 0.0);
+    let v = v
+        .iter()
+        .map(|p| {
+            let t = p[0] + 0.37 * p[1];
+            [0, 1, 2].map(|k| origin[k] + t * dir[k])
+        })
+        .collect();
+    (v, f)
+}
+
+/// Queries around the unit cube (scaled by `size`) against a tree holding runs: the
+/// distance is the smallest over the stored triangles (brute force, the tree's frame)
+/// within `1e-14 size + 4 w` (`w` a run's width; a run answers the smallest face
+/// holding the foot of the query on its line, at that face's own exact distance, which
+/// the tree reports); the same answer from any hint or none; triangles tested and pairs
+/// visited per query average at most `tested` and `pairs`.
+fn assert_runs_bounded_and_close(
+    tree: &TriangleTree,
+    f: &[[u32; 3]],
+    size: f64,
+    tested: f64,
+    pairs: f64,
+) {
+    tree.validate().unwrap();
+    let mut stack = tree.stack();
+    let mut s = 23;
+    let mut hint = u32::MAX;
+    let (mut all_tested, mut all_pairs, queries) = (0, 0, 300);
+    let centre = tree.centre();
+    for i in 0..queries {
+        let p = (DVec3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s)) * 1.4 - 0.2) * size + centre;
+        let (hit, t, q) = counted(|| tree.nearest_local(p - centre, hint, 0.0, &mut stack));
+        let hit = hit.unwrap();
+        (all_tested, all_pairs) = (all_tested + t, all_pairs + q);
+        let d2 = (0..tree.len() as u32)
+            .map(|slot| tree.triangle(slot).closest(p - centre).1)
+            .fold(f64::INFINITY, f64::min);
+        let w = RUN_WIDTH * tree.half_extent().max(centre.abs().max_element());
+        assert!(
+            (hit.d2.sqrt() - d2.sqrt()).abs() < 1e-14 * size + 4.0 * w,
+            "query {i}: {} vs {}",
+            hit.d2.sqrt(),
+            d2.sqrt()
+        );
+        let own = tree.triangle(hit.slot).closest(p - centre);
+        assert_eq!((own.1, tree.faces[hit.slot as usize]), (hit.d2, hit.face));
+        let unhinted = tree.nearest_local(p - centre, u32::MAX, 0.0, &mut stack);
+        assert_eq!(unhinted, Some(hit), "query {i}");
+        hint = (lcg(&mut s) * f.len() as f64) as u32;
+    }
+    let (t, q) = (
+        all_tested as f64 / f64::from(queries),
+        all_pairs as f64 / f64::from(queries),
+    );
+    assert!(
+        t <= tested && q <= pairs,
+        "{t} triangles, {q} pairs per query"
+    );
+}
+
+/// A mesh collapsed onto a line is one run, one leaf: a query tests the hint and the
+/// run's face, and answers as brute force does within rounding, on a diagonal, on a line
+/// in no special direction, far from the origin, and small. Without runs, the boxes of
+/// 45,000 overlapping segments, each far looser than its segment, made a query test
+/// 2,400 triangles and visit 2,500 pairs on the diagonal, 6,100 and 6,100 on the second
+/// line.
+#[test]
+fn a_mesh_collapsed_onto_a_line_is_one_run() {
+    for (origin, dir, size) in [
+        ([0.0; 3], [1.0, 1.0, 1.0], 1.0),
+        ([0.1, -0.2, 0.05], [0.3, -0.7, 0.2], 1.0),
+        ([1e4, 2e4, -3e4], [1.0, 2.0, 0.3], 1.0),
+        ([0.0; 3], [1e-3, 1e-3, 1e-3], 1e-3),
+    ] {
+        let (v, f) = on_a_line(150, origin, dir);
+        let tree = TriangleTree::build(&v, &f).unwrap();
+        assert_eq!(tree.runs.len(), 1, "{dir:?}");
+        assert_eq!(tree.root_count, f.len() as u32 | RUN, "{dir:?}");
+        assert_runs_bounded_and_close(&tree, &f, size, 2.0, 0.0);
+    }
+}
+
+/// Half the faces collapsed onto a line, the others a soup around it; and ten lines
+/// (a grid's rows, each collapsed onto its own line in a plane): runs beside triangles,
+/// close to brute force, and bounded.
+#[test]
+fn runs_beside_triangles_are_close_and_bounded() {
+    let (mut v, mut f) = on_a_line(100, [0.0; 3], [1.0, 1.0, 1.0]);
+    let (sv, sf) = soup(20_000, 11);
+    let base = v.len() as u32;
+    v.extend(sv);
+    f.extend(sf.iter().map(|t| t.map(|i| i + base)));
+    let tree = TriangleTree::build(&v, &f).unwrap();
+    assert_eq!(tree.runs.len(), 1);
+    // 11 triangles and 67 pairs per query.
+    assert_runs_bounded_and_close(&tree, &f, 1.0, 25.0, 140.0);
+    // Rows of a grid in the plane z = x, each row's faces on the diagonal of its own:
+    // the faces between rows are triangles.
+    let (v, f) = crate::test_meshes::grid(200, |_, _| 0.0);
+    let v: Vec<[f64; 3]> = v
+        .iter()
+        .map(|p| {
+            let row = (p[1] * 10.0).round() / 10.0;
+            [p[0] + 0.1 * p[1], row, p[0] + 0.1 * p[1]]
+        })
+        .collect();
+    let tree = TriangleTree::build(&v, &f).unwrap();
+    assert_eq!(tree.runs.len(), 11);
+    // 29 triangles and 62 pairs per query.
+    assert_runs_bounded_and_close(&tree, &f, 1.0, 60.0, 130.0);
 }
 
 #[test]

@@ -6,15 +6,21 @@ use glam::{DVec3, Vec3A};
 
 use crate::closest::PreparedTriangle;
 
+use super::runs::Run;
+
 /// Flag of a leaf's triangle count: its triangles are bitwise identical (recentred corners
 /// equal, slots sorted by face index), and only the first is tested. Counts stay below
-/// 2³¹ (at most 2³¹ faces).
+/// 2³⁰ (fewer than 2³⁰ faces).
 pub(super) const IDENTICAL: u32 = 1 << 31;
 
-/// Triangle slots of a leaf of `count` (flag included).
+/// Flag of a leaf's triangle count: its triangles are a collinear run (`runs.rs`, slots
+/// sorted by face index), searched as one segment.
+pub(super) const RUN: u32 = 1 << 30;
+
+/// Triangle slots of a leaf of `count` (flags included).
 #[inline(always)]
 pub(super) fn slots_of(count: u32) -> u32 {
-    count & !IDENTICAL
+    count & !(IDENTICAL | RUN)
 }
 
 /// Two sibling boxes and what they hold: one cache line.
@@ -25,7 +31,8 @@ pub(super) struct Pair {
     pub(super) max: [[f32; 3]; 2],
     /// Inner child: index of its own pair of children. Leaf: first triangle slot.
     pub(super) link: [u32; 2],
-    /// Triangles in a leaf child, with the [`IDENTICAL`] flag; 0 for an inner child.
+    /// Triangles in a leaf child, with the [`IDENTICAL`] or [`RUN`] flag; 0 for an inner
+    /// child.
     pub(super) count: [u32; 2],
 }
 
@@ -65,6 +72,8 @@ pub struct TriangleTree {
     pub(super) leaf_pair: Vec<u32>,
     /// Per child box (`2 × pair + child`), the smallest face index below it.
     pub(super) min_face: Vec<u32>,
+    /// The collinear runs, in slot order (empty for most meshes).
+    pub(super) runs: Vec<Run>,
     pub(super) depth: usize,
     pub(super) vertex_count: usize,
     /// [`crate::reduce::box_overlap`] of the mesh, from the triangles' f32 boxes.
@@ -120,6 +129,17 @@ impl TriangleTree {
     #[must_use]
     pub fn depth(&self) -> usize {
         self.depth
+    }
+
+    /// The run holding slot `slot`, if any.
+    #[inline]
+    pub(super) fn run_holding(&self, slot: u32) -> Option<&Run> {
+        if self.runs.is_empty() {
+            return None;
+        }
+        let k = self.runs.partition_point(|r| r.first <= slot);
+        let run = &self.runs[k.checked_sub(1)?];
+        (slot - run.first < run.len).then_some(run)
     }
 
     /// The triangle in storage slot `slot` (recentred frame).

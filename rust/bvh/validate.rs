@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 
-use super::tree::{IDENTICAL, TriangleTree, slots_of};
+use super::tree::{IDENTICAL, RUN, TriangleTree, slots_of};
 
 /// Whether `p` lies in the box `[min, max]` (compared in f64).
 fn inside(min: &[f32; 3], max: &[f32; 3], p: DVec3) -> bool {
@@ -79,7 +79,8 @@ impl TriangleTree {
 
     /// The leaf `first`, `count` (flag included) in the box `[min, max]`: in range, its
     /// slots seen for the first time (marked in `seen_slot`), its corners inside the box,
-    /// and, flagged [`IDENTICAL`], two or more identical triangles in face order.
+    /// and, flagged [`IDENTICAL`], two or more identical triangles in face order; flagged
+    /// [`RUN`], exactly the slots of one run, in face order, its table consistent.
     fn check_leaf(
         &self,
         first: u32,
@@ -89,12 +90,27 @@ impl TriangleTree {
         seen_slot: &mut [bool],
     ) -> Result<(), String> {
         let n = self.triangles.len();
-        let (flagged, count) = (count & IDENTICAL != 0, slots_of(count));
-        if count == 0 || (first + count) as usize > n {
-            return Err(format!("leaf {first}+{count} out of range"));
+        let (flagged, run, count) = (count & IDENTICAL != 0, count & RUN != 0, slots_of(count));
+        if count == 0 || (first + count) as usize > n || (flagged && run) {
+            return Err(format!(
+                "leaf {first}+{count} out of range or flagged twice"
+            ));
+        }
+        let slots = first as usize..(first + count) as usize;
+        match self.run_holding(first) {
+            Some(r) if run => {
+                r.check()?;
+                if r.first != first || r.len != count || count < 2 {
+                    return Err(format!("leaf {first}+{count} is not its run"));
+                }
+                if self.faces[slots.clone()].windows(2).any(|w| w[0] >= w[1]) {
+                    return Err(format!("run leaf {first}+{count}: faces not increasing"));
+                }
+            }
+            None if !run => {}
+            _ => return Err(format!("leaf {first}+{count}: run flag and runs disagree")),
         }
         if flagged {
-            let slots = first as usize..(first + count) as usize;
             let same = &self.triangles[first as usize];
             if count < 2
                 || self.triangles[slots.clone()].iter().any(|t| t != same)

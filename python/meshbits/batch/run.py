@@ -171,22 +171,12 @@ def batch(
     started_at = time.perf_counter()
     started = utc_now()
     options = batch_options(error, size, relative, format, codec, seed, max_iterations)
-    if workers is not None and (not isinstance(workers, int) or workers < 1):
-        raise MeshbitsError(f"workers must be a whole number >= 1, got {workers!r}")
-    if dask is not None:
-        if workers is not None:
-            raise MeshbitsError("give workers or dask, not both (local:N sets Dask's workers)")
-        parse_dask(dask)
+    _check_runner(workers, dask)
     out = _out_dir(Path(out_dir).expanduser())
     found = _inputs(source, out_dir, out)
     tasks = _tasks(found, out, options)
     report = ReportFile(out)
-    earlier = report.read()
-    ours = {t.relative for t in tasks}
-    foreign = [row for key, row in earlier.items() if key not in ours]
-    resumed = _resumed(tasks, earlier, out, options, force)
-    to_run = [t for t in tasks if t.index not in resumed]
-    report.start([*foreign, *resumed.values()])
+    foreign, resumed, to_run = _start_report(tasks, report, out, options, force)
     finished, runner, interrupted = _run(to_run, report, workers, dask, progress)
     result = _result(
         tasks=tasks,
@@ -201,10 +191,45 @@ def batch(
         interrupted=interrupted,
         options=options,
     )
+    return _finish(result, out, started)
+
+
+def _check_runner(workers: int | None, dask: str | None) -> None:
+    """``workers`` a whole number >= 1 or None; ``dask`` a valid address, not with ``workers``."""
+    if workers is not None and (not isinstance(workers, int) or workers < 1):
+        raise MeshbitsError(f"workers must be a whole number >= 1, got {workers!r}")
+    if dask is not None:
+        if workers is not None:
+            raise MeshbitsError("give workers or dask, not both (local:N sets Dask's workers)")
+        parse_dask(dask)
+
+
+def _start_report(
+    tasks: list[Task],
+    report: ReportFile,
+    out: Path,
+    options: dict[str, Any],
+    force: bool,
+) -> tuple[list[BatchRow], dict[int, BatchRow], list[Task]]:
+    """Start the report with the earlier rows it keeps, and return them and the tasks left
+    to run: the rows of inputs not in this batch (kept as they are), the rows resumed
+    instead of run again, by task index (see :func:`_resumed`), and the other tasks."""
+    earlier = report.read()
+    ours = {t.relative for t in tasks}
+    foreign = [row for key, row in earlier.items() if key not in ours]
+    resumed = _resumed(tasks, earlier, out, options, force)
+    to_run = [t for t in tasks if t.index not in resumed]
+    report.start([*foreign, *resumed.values()])
+    return foreign, resumed, to_run
+
+
+def _finish(result: BatchResult, out: Path, started: str) -> BatchResult:
+    """Write the plot (when it can be drawn; the result then names it) and the summary;
+    raise :class:`BatchInterrupted` with the result if Ctrl-C stopped the run."""
     if write_plot(out / PLOT_NAME, result):
         result = dataclasses.replace(result, plot=str(out / PLOT_NAME))
     write_summary(out / SUMMARY_NAME, result, started)
-    if interrupted:
+    if result.interrupted:
         raise BatchInterrupted(result)
     return result
 
