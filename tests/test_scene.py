@@ -538,6 +538,7 @@ def test_the_progress_lines_give_the_vertex_counts_of_the_summary(tmp_path):
         path,
         error=0.005,
         relative=True,
+        codec="draco",
         output=tmp_path / "b.glb",
         progress=lambda p: lines.append(str(p)),
     )

@@ -72,7 +72,7 @@ def batch_options(
     return normalised_options(
         {
             "format": format,
-            "codec": codec,
+            "codec": codec if format in SCENE_FORMATS else "draco",
             "error": budget.value if budget.kind == "error" else None,
             "relative": budget.relative,
             "size_bits": budget.value if budget.kind == "size" else None,
@@ -102,7 +102,7 @@ def batch(
     size: float | str | None = None,
     relative: bool = False,
     format: str = "drc",
-    codec: str = "draco",
+    codec: str = "auto",
     seed: int = 0,
     max_iterations: int = 6,
     workers: int | None = None,
@@ -134,7 +134,9 @@ def batch(
         ``"drc"`` (Draco) or ``"ply"`` (quantized PLY) through :func:`meshbits.compress`,
         ``"glb"`` or ``"gltf"`` through :func:`meshbits.compress_scene`.
     codec
-        ``"draco"`` or ``"meshopt"`` (glb/gltf only).
+        ``"auto"`` (both tried on each glb/gltf output, the better file kept: see
+        :func:`meshbits.compress_scene`), ``"draco"`` or ``"meshopt"`` (glb/gltf only; a
+        drc/ply output is Draco or PLY whatever is given).
     seed
         Seed of every measurement (each input is compressed with it: results do not
         depend on the order or the worker).

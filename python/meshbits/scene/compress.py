@@ -63,7 +63,7 @@ def compress_scene(
     error: float | None = None,
     size: float | None = None,
     relative: bool = False,
-    codec: str = "draco",
+    codec: str = "auto",
     normal_tolerance: float = NORMAL_TOLERANCE_DEGREES,
     output: str | Path | None = None,
     seed: int = 0,
@@ -116,15 +116,8 @@ def compress_scene(
     start = time.perf_counter()
     given = _check_scene_arguments(error, size, relative, codec, normal_tolerance, output)
     if codec == "auto":
-        options = dict(
-            error=error,
-            size=size,
-            relative=relative,
-            normal_tolerance=normal_tolerance,
-            seed=seed,
-            certify=certify,
-            progress=progress,
-        )
+        options = dict(error=error, size=size, relative=relative, seed=seed)
+        options.update(normal_tolerance=normal_tolerance, certify=certify, progress=progress)
         return _compress_with_either(source, output, options)
     constraint = given.kind
     scene = _plan(source, output, normal_tolerance)
