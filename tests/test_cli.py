@@ -803,3 +803,20 @@ def test_damaged_files_give_one_line_and_no_python_warning(tmp_path):
             assert "Warning" not in out.stderr, out.stderr
             if out.returncode == 2:
                 assert out.stderr.count("\n") == 1, out.stderr
+
+
+@pytest.mark.parametrize("suffix", [".drc", ".glb"])
+def test_an_output_larger_than_its_input_is_said(tmp_path, capsys, suffix):
+    """A tetrahedron of 64 bytes of OBJ: no Draco file or GLB is that small, and the
+    report says so instead of keeping quiet (issue 33, item 5)."""
+    mesh = tmp_path / "tet.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    output = tmp_path / f"tet{suffix}"
+    args = ["compress", str(mesh), "--error", "0.01", "-o", str(output), "--json"]
+    assert main([*args, "--codec", "draco"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    size, given = output.stat().st_size, mesh.stat().st_size
+    assert size > given
+    said = f"larger than its input ({size:,} > {given:,} bytes)"
+    notes = payload.get("notes") or [payload["message"]]
+    assert any(said.replace(",", "") in note.replace(",", "") for note in notes), payload

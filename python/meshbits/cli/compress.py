@@ -266,6 +266,7 @@ def _run_compress(args: argparse.Namespace) -> int:
         else:
             save_mesh(output, result.vertices, result.faces)
         file_bytes = output.stat().st_size
+    input_bytes = args.mesh.stat().st_size
     payload = {
         "mesh": str(args.mesh),
         "output": str(output) if output else None,
@@ -275,10 +276,17 @@ def _run_compress(args: argparse.Namespace) -> int:
         **result.to_dict(),
     }
     payload["message"] = in_unit(payload["message"], unit)
+    larger = file_bytes is not None and file_bytes > input_bytes
+    if larger:
+        payload["notes"] = [
+            f"the file is larger than its input ({file_bytes} > {input_bytes} bytes)"
+        ]
     if args.json:
         print_json(payload, args.mesh)
     else:
         _print_compress(args, mesh, result, budget, file_bytes)
+        if larger:
+            print(f"note: {payload['notes'][0]}")
     return EXIT_OK if result.met else EXIT_UNMET
 
 

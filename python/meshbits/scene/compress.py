@@ -362,7 +362,8 @@ def _write(
 ) -> tuple[list[str], int]:
     """Write the output (when asked): clusters whose data would grow kept as they were,
     every primitive kept when the file would be larger than a glTF input (and a .glb
-    input itself written when even that is larger). Returns the files and the size."""
+    input itself written when even that is larger; a larger file than any other input
+    noted). Returns the files and the size."""
     _keep_what_grows(document, jobs, encodings)
     out, data = scene_document(document, jobs, encodings, codec)
     written: bytes | None = None
@@ -373,7 +374,13 @@ def _write(
         out, data = scene_document(document, jobs, encodings, codec)
         if _larger_than_input(source, output, input_bytes, out, data) and _verbatim(source, output):
             written = Path(source).read_bytes()
-    return write_document(out, data, output, written)
+    files, size = write_document(out, data, output, written)
+    if input_bytes and size > input_bytes:
+        document.notes.append(
+            f"the file is larger than its input ({size:,} > {input_bytes:,} bytes): "
+            "a glTF's container, JSON and accessors outweigh what compression saved"
+        )
+    return files, size
 
 
 def _check_scene_arguments(
