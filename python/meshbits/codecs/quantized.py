@@ -12,6 +12,7 @@ import numpy as np
 from .. import _core
 from ..formats.gltf.spec import COMPONENT_TYPES, WIDTH_TYPES
 from .attributes import DEFAULT_UV_BITS, AttributeBits, in_unit_square
+from .morph_targets import morph_bound, target_rows
 from .primitive import PrimitiveEncoding, accessor_fields, index_component, unit_u8, weights_u8
 
 __all__ = ["MESHOPT_INTEGER_BITS", "MESHOPT_MAX_BITS", "encode_meshopt_primitive"]
@@ -55,6 +56,7 @@ def encode_meshopt_primitive(
     attribute_bits: AttributeBits,
     *,
     integer_positions: bool = True,
+    targets: list[dict[str, np.ndarray]] | None = None,
 ) -> PrimitiveEncoding:
     """A primitive as ``EXT_meshopt_compression`` streams under ``KHR_mesh_quantization``,
     triangles and vertices first reordered for the codecs (as gltfpack does): positions as
@@ -62,7 +64,10 @@ def encode_meshopt_primitive(
     dequantization goes to the nodes), or as float32 on the grid for a skinned or
     instanced primitive and beyond 16 bits; normals and tangents through the octahedral
     filter; UVs rounded to their bits, as normalized unsigned shorts within [0, 1] and
-    float32 beyond; colours and weights as normalized bytes; joints as bytes or shorts."""
+    float32 beyond; colours and weights as normalized bytes; joints as bytes or shorts.
+    Morph ``targets`` (each ``name -> displacements``, in the order of ``vertices``) are
+    stored as :mod:`meshbits.codecs.morph_targets` says, and the encoding's
+    ``morph_bound`` certifies the morphed primitive at any weights in [0, 1]."""
     integer_positions = integer_positions and bits <= MESHOPT_INTEGER_BITS
     attributes = attributes or {}
     order_faces, old = _core.meshopt_reorder(
@@ -93,6 +98,21 @@ def encode_meshopt_primitive(
         streams.append(stream)
     stream, accessors["indices"] = _index_stream(faces, n)
     streams.append(stream)
+    target_accessors, deltas, bound = [], [], None
+    if targets:
+        rows, deltas = target_rows(targets, old, step, integer_positions, attribute_bits.normal)
+        for number, target in enumerate(rows):
+            target_accessors.append({})
+            for name, stored_rows, fields in target:
+                streams.append({**_stream(name, stored_rows), "target": number})
+                target_accessors[-1][name] = fields
+        bound = morph_bound(
+            grid - vertices,
+            [
+                decoded - np.asarray(target.get("POSITION", np.zeros((len(old), 3))))[old]
+                for decoded, target in zip(deltas, targets, strict=True)
+            ],
+        )
     return PrimitiveEncoding(
         size_bits=8 * sum(len(s["data"]) for s in streams),
         vertices=grid,
@@ -102,6 +122,9 @@ def encode_meshopt_primitive(
         dequantize=(np.asarray(origin, dtype=np.float64), float(step))
         if integer_positions
         else None,
+        target_accessors=target_accessors,
+        target_deltas=deltas,
+        morph_bound=bound,
     )
 
 

@@ -41,6 +41,7 @@ from .primitives import (
 )
 from .report import PrimitiveReport, SceneResult, job_report, kept_report, scene_result
 from .shared_grid import Encodings, final_encodings
+from .skins import settle_skin_rounding
 from .split import RunAt, size_one, split_size
 
 __all__ = ["CODECS", "WORLD_ROUNDING", "compress_scene", "scene_document"]
@@ -111,7 +112,7 @@ def compress_scene(
     start = time.perf_counter()
     given = _check_scene_arguments(error, size, relative, codec, normal_tolerance, output)
     constraint = given.kind
-    scene = _plan(source, output, normal_tolerance)
+    scene = _plan(source, output, normal_tolerance, codec)
     budget = given.resolve(scene.world_size)
     jobs = scene.jobs
     run_at = _run_at(jobs, codec, seed, certify, scene.margin, scene.unit, progress)
@@ -124,6 +125,7 @@ def compress_scene(
             scene.document, jobs, budget, codec, seed, certify, run_at, scene.world_size
         )
     encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
+    settle_skin_rounding(scene.document, jobs, encodings[0])
     files, size_bytes = _write(
         scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes
     )
@@ -159,9 +161,10 @@ class _Planned:
     kept: list[PrimitiveData]
     world_size: float
     margin: float
+    codec: str
 
 
-def _plan(source: Any, output: str | Path | None, normal_tolerance: float) -> _Planned:
+def _plan(source: Any, output: str | Path | None, normal_tolerance: float, codec: str) -> _Planned:
     """Read the scene, group its primitives into jobs and place them in frames."""
     document, input_bytes = _read_source(source, output)
     # A glTF's lengths are meters; another file's are its own coordinates, as its JSON
@@ -170,7 +173,7 @@ def _plan(source: Any, output: str | Path | None, normal_tolerance: float) -> _P
     instances = document.mesh_instances()
     where = "" if isinstance(source, Document) else f"{source}: "
     primitives = decoded_primitives(document, where)
-    jobs, kept = plan_jobs(document, primitives, instances, normal_tolerance, where)
+    jobs, kept = plan_jobs(document, primitives, instances, normal_tolerance, where, codec)
     if not jobs and not kept:
         raise MeshFileError("the scene has no triangle primitive")
     place_in_frames(jobs, kept, document)
@@ -179,7 +182,7 @@ def _plan(source: Any, output: str | Path | None, normal_tolerance: float) -> _P
     # transforms) carry float64 rounding that the measurement in each mesh's frame does
     # not: every bound is raised by it.
     margin = WORLD_ROUNDING * reach
-    return _Planned(document, input_bytes, unit, instances, jobs, kept, world_size, margin)
+    return _Planned(document, input_bytes, unit, instances, jobs, kept, world_size, margin, codec)
 
 
 def _reports(
@@ -209,7 +212,7 @@ def _reports(
         )
     ]
     return reports + [
-        kept_report(scene.document, data, scene.instances, certify, scene.margin)
+        kept_report(scene.document, data, scene.instances, certify, scene.margin, scene.codec)
         for data in scene.kept
     ]
 
@@ -246,7 +249,7 @@ def _run_at(
     def run_at(world_error: float) -> list[Outcome]:
         outcomes = []
         for job in jobs:
-            local = max(world_error - margin, world_error / 2) / job.scale
+            local = max(world_error - margin - job.skin_rounding, world_error / 2) / job.scale
             outcome = search_primitive(job, local, codec, seed, certify)
             outcomes.append(outcome)
             if outcome[0] is not None and progress is not None:
@@ -364,6 +367,7 @@ def _input_views(document: Document, targets: list[tuple[int, int]]) -> set[int]
     for mesh, index in targets:
         prim = document.json["meshes"][mesh]["primitives"][index]
         used = list((prim.get("attributes") or {}).values())
+        used += [index for target in prim.get("targets") or [] for index in target.values()]
         if prim.get("indices") is not None:
             used.append(prim["indices"])
         for accessor in used:
