@@ -125,10 +125,10 @@ def compress_scene(
             scene.document, jobs, budget, codec, seed, certify, run_at, scene.world_size
         )
     encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
-    settle_skin_rounding(scene.document, jobs, encodings[0])
     files, size_bytes = _write(
         scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes
     )
+    settle_skin_rounding(scene.document, jobs, encodings[0])
     return scene_result(
         constraint,
         budget,

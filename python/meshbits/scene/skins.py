@@ -147,15 +147,25 @@ def code_reach(
 
 
 def settle_skin_rounding(document: Document, jobs: list, encodings: list) -> None:
-    """Each skin-framed job's ``skin_rounding``: :func:`ibm_rounding` of the frame it is
-    written with (0 when it is written with float32 positions, its skins unchanged)."""
+    """Each skin-framed job's ``skin_rounding``, once the output is written:
+    :func:`ibm_rounding` of the frame it is written with (integer codes, or positions
+    moved to their centre), 0 when its skins keep their matrices (float32 positions, or
+    the job kept as it was)."""
     worlds: dict[int, np.ndarray] | None = None
     for job, encoding in zip(jobs, encodings, strict=True):
-        if not job.skins or encoding is None or encoding.dequantize is None:
+        if encoding is not None and encoding.dequantize is not None:
+            origin, step = encoding.dequantize
+        else:
+            origin, step = np.zeros(3), 1.0
+        if (
+            not job.skins
+            or job.kept is not None
+            or encoding is None
+            or (encoding.dequantize is None and not job.offset.any())
+        ):
             job.skin_rounding = 0.0
             continue
         worlds = node_worlds(document) if worlds is None else worlds
-        origin, step = encoding.dequantize
         reach = code_reach(encoding.vertices, encoding.target_deltas, origin, step)
         job.skin_rounding = ibm_rounding(
             document, job.skins, worlds, job.offset + origin, step, reach
