@@ -285,7 +285,9 @@ def point_triangle_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.n
         # which a long thin triangle amplifies: 1.7e-13 for a point on a 4 x 0.1 triangle
         # of MorphStressTest, whose plane distance is 0.)
         normal = np.cross(ab, ac)
-        plane = np.abs(np.einsum("ij,ij->i", ap, normal)) / np.linalg.norm(normal, axis=1)
+        length = np.linalg.norm(normal, axis=1)
+        inside &= length > 0
+        plane = np.abs(np.einsum("ij,ij->i", ap, normal)) / np.where(length > 0, length, 1.0)
         best = np.where(inside, plane, np.inf)
     for s, e in ((a, b), (b, c), (c, a)):
         se = e - s
