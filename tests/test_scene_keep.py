@@ -75,7 +75,7 @@ def test_a_scene_of_morph_targets_only_goes_through_as_it_was(tmp_path, capsys):
     out = tmp_path / "out.glb"
     assert main(["compress", str(source), "-o", str(out), "--error", "0.001", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
-    assert report["met"] and report["primitives"][0]["kept"] == "morph targets"
+    assert report["met"] and report["primitives"][0]["kept"].startswith("morph targets")
     doc, _ = read_gltf(out)
     assert len(doc["meshes"][0]["primitives"][0]["targets"]) == 2
     assert doc["animations"][0]["channels"][0]["target"]["path"] == "weights"

@@ -43,6 +43,16 @@ class PrimitiveEncoding:
         ``count``, ``mode``, ``filter``).
     dequantize : tuple or None
         meshopt: ``(origin, step)`` mapping integer position codes to mesh units.
+    target_accessors : list of dict
+        meshopt: each morph target's ``name -> accessor fields``.
+    target_deltas : list of ndarray
+        meshopt: each morph target's decoded ``POSITION`` displacements (mesh units, in
+        the order of ``vertices``; zeros for a target without positions).
+    morph_bound : float or None
+        With morph targets: a certified bound (mesh units) on how far any vertex of the
+        decoded primitive is from the input's at any weights in [0, 1] per target
+        (:func:`meshbits.codecs.morph_targets.morph_bound`), which bounds the Hausdorff
+        distance of the morphed meshes (same triangles, vertices moved at most that).
     """
 
     size_bits: int
@@ -54,6 +64,9 @@ class PrimitiveEncoding:
     streams: list[dict[str, Any]] = field(default_factory=list, repr=False)
     dequantize: tuple[np.ndarray, float] | None = None
     bits: int | None = None
+    target_accessors: list[dict[str, dict[str, Any]]] = field(default_factory=list, repr=False)
+    target_deltas: list[np.ndarray] = field(default_factory=list, repr=False)
+    morph_bound: float | None = None
 
     @property
     def data(self) -> bytes:

@@ -44,6 +44,7 @@ from .primitives import (
 )
 from .report import PrimitiveReport, SceneResult, job_report, kept_report, scene_result
 from .shared_grid import Encodings, final_encodings
+from .skins import settle_skin_rounding
 from .split import RunAt, size_one, split_size
 
 __all__ = ["CODECS", "WORLD_ROUNDING", "better_codec", "compress_scene", "scene_document"]
@@ -120,7 +121,7 @@ def compress_scene(
         options.update(normal_tolerance=normal_tolerance, certify=certify, progress=progress)
         return _compress_with_either(source, output, options)
     constraint = given.kind
-    scene = _plan(source, output, normal_tolerance)
+    scene = _plan(source, output, normal_tolerance, codec)
     budget = given.resolve(scene.world_size)
     jobs = scene.jobs
     run_at = _run_at(jobs, codec, seed, certify, scene.margin, scene.unit, progress)
@@ -136,6 +137,7 @@ def compress_scene(
     files, size_bytes = _write(
         scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes
     )
+    settle_skin_rounding(scene.document, jobs, encodings[0])
     return scene_result(
         constraint,
         budget,
@@ -232,9 +234,10 @@ class _Planned:
     kept: list[PrimitiveData]
     world_size: float
     margin: float
+    codec: str
 
 
-def _plan(source: Any, output: str | Path | None, normal_tolerance: float) -> _Planned:
+def _plan(source: Any, output: str | Path | None, normal_tolerance: float, codec: str) -> _Planned:
     """Read the scene, group its primitives into jobs and place them in frames."""
     document, input_bytes = _read_source(source, output)
     # A glTF's lengths are meters; another file's are its own coordinates, as its JSON
@@ -243,7 +246,7 @@ def _plan(source: Any, output: str | Path | None, normal_tolerance: float) -> _P
     instances = document.mesh_instances()
     where = "" if isinstance(source, Document) else f"{source}: "
     primitives = decoded_primitives(document, where)
-    jobs, kept = plan_jobs(document, primitives, instances, normal_tolerance, where)
+    jobs, kept = plan_jobs(document, primitives, instances, normal_tolerance, where, codec)
     if not jobs and not kept:
         raise MeshFileError("the scene has no triangle primitive")
     place_in_frames(jobs, kept, document)
@@ -252,7 +255,7 @@ def _plan(source: Any, output: str | Path | None, normal_tolerance: float) -> _P
     # transforms) carry float64 rounding that the measurement in each mesh's frame does
     # not: every bound is raised by it.
     margin = WORLD_ROUNDING * reach
-    return _Planned(document, input_bytes, unit, instances, jobs, kept, world_size, margin)
+    return _Planned(document, input_bytes, unit, instances, jobs, kept, world_size, margin, codec)
 
 
 def _reports(
@@ -282,7 +285,7 @@ def _reports(
         )
     ]
     return reports + [
-        kept_report(scene.document, data, scene.instances, certify, scene.margin)
+        kept_report(scene.document, data, scene.instances, certify, scene.margin, scene.codec)
         for data in scene.kept
     ]
 
@@ -319,7 +322,7 @@ def _run_at(
     def run_at(world_error: float) -> list[Outcome]:
         outcomes = []
         for job in jobs:
-            local = max(world_error - margin, world_error / 2) / job.scale
+            local = max(world_error - margin - job.skin_rounding, world_error / 2) / job.scale
             outcome = search_primitive(job, local, codec, seed, certify)
             outcomes.append(outcome)
             if outcome[0] is not None and progress is not None:
@@ -444,6 +447,7 @@ def _input_views(document: Document, targets: list[tuple[int, int]]) -> set[int]
     for mesh, index in targets:
         prim = document.json["meshes"][mesh]["primitives"][index]
         used = list((prim.get("attributes") or {}).values())
+        used += [index for target in prim.get("targets") or [] for index in target.values()]
         if prim.get("indices") is not None:
             used.append(prim["indices"])
         for accessor in used:

@@ -27,6 +27,7 @@ from ..search import (
     Refused,
     Search,
 )
+from .morph_search import search_morph
 from .primitives import KEPT, Job, Outcome
 
 __all__ = ["SCENE_PASSES", "SCENE_SAMPLES", "job_reference", "primitive_codec", "search_primitive"]
@@ -89,6 +90,10 @@ def search_primitive(
         return job.results[(constraint, budget, certify)]
     data = job.data
     reference = job_reference(job, seed)
+    if data.targets:
+        outcome = search_morph(job, budget, certify, constraint, reference)
+        job.results[(constraint, budget, certify)] = outcome
+        return outcome
     attributes = None
     if data.attributes:
         attributes = Attributes(

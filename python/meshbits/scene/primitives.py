@@ -18,6 +18,7 @@ from ..formats.gltf.validate import finite_or_fail
 from ..formats.gltf.write import frame_centre
 from ..formats.sniff import image_size
 from ..hausdorff import Reference
+from .skins import ibm_rounding_reserve, mesh_skins, node_worlds, rest_joint_scale
 
 __all__ = [
     "KEPT",
@@ -65,6 +66,12 @@ class Job:
     kept: str | None = None
     #: Candidates its search skipped (the encoder refused them), each with why.
     skipped: tuple[str, ...] = ()
+    #: The skins whose inverse bind matrices carry its frame (a skinned mesh's integer
+    #: positions: its nodes' transforms do not apply); empty when its nodes carry it.
+    skins: set[int] = field(default_factory=set)
+    #: A bound (world units) on what rounding those matrices to float32 moves it by,
+    #: added to its certified bound (:func:`meshbits.scene.skins.ibm_rounding`).
+    skin_rounding: float = 0.0
 
     @property
     def meshes(self) -> set[int]:
@@ -150,6 +157,7 @@ def _geometry_key(document: Document, data: PrimitiveData) -> str:
             prim.get("indices"),
             prim.get("mode", 4),
             (prim.get("extensions") or {}).get("KHR_draco_mesh_compression"),
+            prim.get("targets"),
         ],
         sort_keys=True,
     )
@@ -161,22 +169,30 @@ def plan_jobs(
     instances: dict[int, list[tuple[int, np.ndarray]]],
     normal_tolerance: float,
     where: str,
+    codec: str = "meshopt",
 ) -> tuple[list[Job], list[PrimitiveData]]:
     """The geometries to compress (primitives sharing accessors as one) and the
-    primitives kept as they are (morph targets, no faces)."""
+    primitives kept as they are (no faces; morph targets with Draco, which does not
+    compress them, or of a Draco input, whose decoded vertex order need not be theirs).
+    A skinned primitive's scale is also at least its skins' (:func:`rest_joint_scale`)."""
     jobs: dict[str, Job] = {}
     kept: list[PrimitiveData] = []
+    skins, worlds = mesh_skins(document), node_worlds(document)
     for data in primitives:
-        if data.morph or len(data.faces) == 0:
+        if len(data.faces) == 0 or (data.morph and (codec == "draco" or not data.targets)):
             kept.append(data)
             continue
         nodes = instances.get(data.mesh, [])
         scale = max((largest_scale(m) for _, m in nodes), default=1.0) or 1.0
+        if data.skinned:
+            posing = {s for s in skins.get(data.mesh, set()) if s is not None}
+            scale = max(scale, rest_joint_scale(document, posing, worlds))
         mesh_name = document.json["meshes"][data.mesh].get("name")
-        finite_or_fail(
-            f"{where}mesh {data.mesh} ({mesh_name or 'unnamed'}), primitive {data.index}: POSITION",
-            data.positions,
-        )
+        label = f"{where}mesh {data.mesh} ({mesh_name or 'unnamed'}), primitive {data.index}"
+        finite_or_fail(f"{label}: POSITION", data.positions)
+        for t, target in enumerate(data.targets):
+            for name, values in target.items():
+                finite_or_fail(f"{label}: targets[{t}].{name}", values)
         bits = choose_attribute_bits(document, data, normal_tolerance)
         key = _geometry_key(document, data)
         job = jobs.get(key)
@@ -237,18 +253,90 @@ def place_in_frames(jobs: list[Job], kept: list[PrimitiveData], document: Docume
         first, *others = sorted(job.meshes)
         for mesh in others:
             parent[root(mesh)] = root(first)
+    skins_of = mesh_skins(document)
+    first_posed: dict[int, int] = {}
+    for mesh, skins in skins_of.items():
+        for skin in skins - {None}:
+            parent[root(mesh)] = root(first_posed.setdefault(skin, mesh))
     clusters: dict[int, list[Job]] = {}
     for job in jobs:
         clusters.setdefault(root(min(job.meshes)), []).append(job)
     unframed = document.instanced_meshes() | {data.mesh for data in kept}
     for number, members in enumerate(clusters.values()):
         meshes = {mesh for job in members for mesh in job.meshes}
-        framed = not (meshes & unframed) and not any(job.data.skinned for job in members)
+        skins = set().union(*(skins_of.get(mesh, set()) for mesh in meshes)) - {None}
+        if skins or any(job.data.skinned for job in members):
+            framed = _skin_frameable(members, meshes, skins, skins_of, unframed)
+        else:
+            framed = not (meshes & unframed) and _weights_stay(document, meshes)
         centre = np.zeros(3)
         if framed:
             centre = frame_centre(np.concatenate([job.data.positions for job in members]))
         for job in members:
             job.cluster, job.framed = number, framed
+            job.skins = set(skins) if framed else set()
             if centre.any():
                 job.offset = centre
                 job.data = replace(job.data, positions=job.data.positions - centre)
+        if framed and skins:
+            _reserve_skin_rounding(document, members, skins)
+
+
+def _reserve_skin_rounding(document: Document, members: list[Job], skins: set[int]) -> None:
+    """Set aside in each job of a skin-framed cluster the most that rounding its skins'
+    folded matrices can move it by (:func:`ibm_rounding_reserve`, over the cluster's box:
+    its jobs share one grid)."""
+    positions = np.concatenate([job.data.positions for job in members])
+    spread = max(
+        sum(
+            float(np.linalg.norm(t["POSITION"], axis=1).max(initial=0.0))
+            for t in job.data.targets
+            if "POSITION" in t
+        )
+        for job in members
+    )
+    reserve = ibm_rounding_reserve(document, skins, node_worlds(document), positions, spread)
+    for job in members:
+        job.skin_rounding = reserve
+
+
+def _skin_frameable(
+    members: list[Job],
+    meshes: set[int],
+    skins: set[int],
+    skins_of: dict[int, set[int | None]],
+    unframed: set[int],
+) -> bool:
+    """Whether a cluster with skinned meshes can store integer positions, its frame in
+    its skins' inverse bind matrices: every primitive skinned, every node showing its
+    meshes with a skin, every mesh those skins pose in the cluster, none instanced or
+    kept."""
+    posed = {mesh for mesh, used in skins_of.items() if used & skins}
+    every_node_skinned = all(None not in skins_of.get(mesh, {None}) for mesh in meshes)
+    return (
+        bool(skins)
+        and all(job.data.skinned for job in members)
+        and every_node_skinned
+        and posed <= meshes
+        and not (meshes & unframed)
+    )
+
+
+def _weights_stay(document: Document, meshes: set[int]) -> bool:
+    """Whether the frame of ``meshes`` can go into the nodes showing them without moving
+    a mesh whose morph weights an animation drives (an animation targets the node: the
+    mesh must stay on it, so the frame must fold into the node itself)."""
+    driven = {
+        channel["target"]["node"]
+        for animation in document.json.get("animations", [])
+        for channel in animation.get("channels", [])
+        if channel.get("target", {}).get("path") == "weights"
+    }
+    foldable = {"mesh", "name", "translation", "rotation", "scale", "matrix", "weights"}
+    animated = document.animated_nodes()
+    nodes = document.json.get("nodes", [])
+    return all(
+        set(nodes[i]) <= foldable and i not in animated
+        for i in driven
+        if 0 <= i < len(nodes) and nodes[i].get("mesh") in meshes
+    )

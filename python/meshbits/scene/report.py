@@ -202,7 +202,7 @@ def job_report(
     compressed = job.kept is None and encoding is not None
     if not compressed:
         error, upper = _kept_error(document, job, certify)
-    world_upper = None if upper is None else upper * job.scale + margin
+    world_upper = None if upper is None else upper * job.scale + margin + job.skin_rounding
     limit = target_error * (1 + 1e-12)
     if not compressed and error == 0.0:
         met = True
@@ -255,9 +255,16 @@ def kept_report(
     instances: dict[int, list[tuple[int, np.ndarray]]],
     certify: bool,
     margin: float,
+    codec: str = "meshopt",
 ) -> PrimitiveReport:
     """The report of a primitive with morph targets or no faces, copied as it was (its
     bound the world rounding ``margin``)."""
+    if not data.morph:
+        why = "no faces"
+    elif codec == "draco":
+        why = "morph targets (KHR_draco_mesh_compression does not compress them)"
+    else:
+        why = "morph targets of a Draco primitive (its decoded vertex order need not be theirs)"
     return PrimitiveReport(
         mesh=data.mesh,
         primitive=data.index,
@@ -276,7 +283,7 @@ def kept_report(
         error=0.0,
         world_error=0.0,
         met=True,
-        kept="morph targets" if data.morph else "no faces",
+        kept=why,
         error_upper=0.0 if certify else None,
         world_error_upper=margin if certify else None,
     )

@@ -43,7 +43,10 @@ def final_encodings(
     encodings = [o[1] for o in outcomes]
     if codec == "meshopt":
         budgets = (
-            [max(target_error - margin, target_error / 2) / job.scale for job in jobs]
+            [
+                max(target_error - margin - job.skin_rounding, target_error / 2) / job.scale
+                for job in jobs
+            ]
             if certify
             else None
         )
@@ -75,6 +78,13 @@ class _Measured:
         reference = self.jobs[i].reference
         assert reference is not None
         mesh = (encoding.vertices, encoding.faces)
+        if encoding.morph_bound is not None:
+            # Morph targets: the certified bound over every weight, and the base's
+            # sampled distance.
+            sampled = reference.hausdorff(mesh).distance
+            self.measured[i] = min(sampled, encoding.morph_bound)
+            self.uppers[i] = None if self.budgets is None else encoding.morph_bound
+            return
         if self.budgets is None:
             self.measured[i], self.uppers[i] = reference.hausdorff(mesh).distance, None
             return
@@ -150,6 +160,7 @@ def _on_one_grid(state: _Measured, members: list[int], outcomes: list[Outcome]) 
                 origin,
                 side,
                 state.jobs[i].bits,
+                targets=state.jobs[i].data.targets or None,
             )
             encoding.bits = shared_bits
             state.replace(i, encoding)
@@ -175,6 +186,7 @@ def _on_own_float_grids(state: _Measured, members: list[int], outcomes: list[Out
             level.grid_size,
             state.jobs[i].bits,
             integer_positions=False,
+            targets=state.jobs[i].data.targets or None,
         )
         encoding.bits = bits
         state.replace(i, encoding)

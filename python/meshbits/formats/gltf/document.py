@@ -58,7 +58,12 @@ class PrimitiveData:
         ``name -> (componentType, normalized)`` of the input accessors.
     material : int or None
     morph : bool
-        It has morph targets (kept as they are: not simplified nor quantized).
+        It has morph targets.
+    targets : list of dict
+        Each morph target's displacements by attribute name (``POSITION``, ``NORMAL``,
+        ``TANGENT``...), float64 ``(n, 3)`` (normalized integers mapped to [-1, 1]), in
+        the order of ``positions``; empty for a primitive without targets and for a Draco
+        primitive's (whose decoded vertex order need not be its accessors').
     """
 
     mesh: int
@@ -69,6 +74,7 @@ class PrimitiveData:
     source_types: dict[str, tuple[int, bool]] = field(repr=False)
     material: int | None
     morph: bool
+    targets: list[dict[str, np.ndarray]] = field(default_factory=list, repr=False)
 
     @property
     def skinned(self) -> bool:
@@ -333,6 +339,7 @@ class Document:
                 f"refers to a vertex out of range (there are {len(positions)} vertices)"
             )
         types.pop("POSITION", None)
+        targets = [] if draco is not None else self._targets(prim, len(positions), mesh, index)
         return PrimitiveData(
             mesh=mesh,
             index=index,
@@ -342,7 +349,27 @@ class Document:
             source_types=types,
             material=prim.get("material"),
             morph=bool(prim.get("targets")),
+            targets=targets,
         )
+
+    def _targets(
+        self, prim: dict[str, Any], count: int, mesh: int, index: int
+    ) -> list[dict[str, np.ndarray]]:
+        """A primitive's morph targets: each one's displacements by attribute name,
+        float64, one row per vertex (``count``)."""
+        out = []
+        for t, target in enumerate(prim.get("targets") or []):
+            values = {}
+            for name, acc in target.items():
+                delta = self.accessor(acc).astype(np.float64)
+                if len(delta) != count:
+                    raise MeshFileError(
+                        f"meshes[{mesh}].primitives[{index}].targets[{t}].{name}: "
+                        f"{len(delta)} values for {count} vertices"
+                    )
+                values[name] = delta
+            out.append(values)
+        return out
 
     def _draco(
         self, prim: dict[str, Any], draco: dict[str, Any]

@@ -22,8 +22,10 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ...errors import MeshbitsError
 from ...files import write_atomic
 from .document import Document
+from .skins import Frame, folded_matrix_bytes, skin_frames
 from .spec import MESHOPT_EXTENSIONS
 
 __all__ = [
@@ -115,6 +117,9 @@ class EncodedGeometry(Protocol):
     streams: list[dict[str, Any]]
     #: meshopt's integer positions: ``(origin, step)`` placing them in mesh units.
     dequantize: tuple[np.ndarray, float] | None
+    #: Each morph target's accessor fields by attribute name (meshopt; its streams carry
+    #: ``target``, the target's index).
+    target_accessors: list[dict[str, dict[str, Any]]]
 
 
 @dataclass(frozen=True)
@@ -175,11 +180,12 @@ def rebuild_document(
     (``codec``: ``"draco"`` or ``"meshopt"``): each one's data once, every primitive of its
     ``targets`` pointing at it, frames folded into the nodes; every other primitive, and
     everything else, copied (images into the buffer)."""
+    frames = _frames(geometries)
+    skins = skin_frames(document, frames)
     rebuilt = _Rebuilt(document, {t for geometry in geometries for t in geometry.targets})
-    rebuilt.copy_kept_data()
-    frames: dict[int, tuple[np.ndarray, float]] = {}
+    rebuilt.copy_kept_data(skins)
     for geometry in geometries:
-        rebuilt.add_geometry(geometry, codec, frames)
+        rebuilt.add_geometry(geometry, codec)
     out = rebuilt.out
     if frames:
         _apply_frames(out, document, frames)
@@ -244,16 +250,24 @@ class _Rebuilt:
             self.accessor_map[old] = len(self.accessors) - 1
         return self.accessor_map[old]
 
-    def copy_kept_data(self) -> None:
+    def copy_kept_data(self, skins: dict[int, Frame]) -> None:
         """Copy what is not replaced, with its data as it was: the primitives not
-        compressed, skins' matrices, animations, instancing, and every image (images that
-        share their data, one bufferView or one URI, keep sharing it)."""
+        compressed, skins' matrices (with the frame of the meshes they pose folded in, for
+        the ``skins`` given), animations, instancing, and every image (images that share
+        their data, one bufferView or one URI, keep sharing it)."""
         for m, mesh in enumerate(self.out.get("meshes", [])):
             for p, prim in enumerate(mesh.get("primitives", [])):
                 if (m, p) not in self.replaced:
                     self._copy_primitive(prim, self.document.json["meshes"][m]["primitives"][p])
-        for skin in self.out.get("skins", []):
-            if skin.get("inverseBindMatrices") is not None:
+        for index, skin in enumerate(self.out.get("skins", [])):
+            if index in skins:
+                data, accessor = folded_matrix_bytes(self.document, index, skins[index])
+                self.views.append(
+                    {"buffer": 0, "byteOffset": self.blob.add(data), "byteLength": len(data)}
+                )
+                self.accessors.append({**accessor, "bufferView": len(self.views) - 1})
+                skin["inverseBindMatrices"] = len(self.accessors) - 1
+            elif skin.get("inverseBindMatrices") is not None:
                 skin["inverseBindMatrices"] = self.copy_accessor(skin["inverseBindMatrices"])
         for animation in self.out.get("animations", []):
             for sampler in animation.get("samplers", []):
@@ -297,14 +311,9 @@ class _Rebuilt:
                 "bufferView": self.copy_view(draco["bufferView"]),
             }
 
-    def add_geometry(
-        self,
-        geometry: CompressedGeometry,
-        codec: str,
-        frames: dict[int, tuple[np.ndarray, float]],
-    ) -> None:
-        """A compressed geometry's accessors and data, every primitive of its targets
-        pointed at them, and its meshes' frames (``mesh -> (origin, step)``) recorded."""
+    def add_geometry(self, geometry: CompressedGeometry, codec: str) -> None:
+        """A compressed geometry's accessors and data (morph targets too), every primitive
+        of its targets pointed at them."""
         encoding = geometry.encoding
         attributes = {}
         for name, spec in encoding.accessors.items():
@@ -314,6 +323,12 @@ class _Rebuilt:
             attributes[name] = len(self.accessors) - 1
         self.accessors.append(dict(encoding.accessors["indices"]))
         indices = len(self.accessors) - 1
+        targets: list[dict[str, int]] = []
+        for target in encoding.target_accessors:
+            targets.append({})
+            for name, spec in target.items():
+                self.accessors.append(dict(spec))
+                targets[-1][name] = len(self.accessors) - 1
         draco = None
         if codec == "draco":
             assert encoding.draco is not None
@@ -331,15 +346,23 @@ class _Rebuilt:
         else:
             for stream in encoding.streams:
                 self.views.append(self._meshopt_view(stream))
-                key = indices if stream["name"] == "indices" else attributes[stream["name"]]
+                if stream.get("target") is not None:
+                    key = targets[stream["target"]][stream["name"]]
+                elif stream["name"] == "indices":
+                    key = indices
+                else:
+                    key = attributes[stream["name"]]
                 self.accessors[key]["bufferView"] = len(self.views) - 1
         for mesh, number in geometry.targets:
-            _point_at(self.out["meshes"][mesh]["primitives"][number], attributes, indices, draco)
-            if encoding.dequantize is not None:
-                origin, step = encoding.dequantize
-                frames[mesh] = (geometry.offset + origin, step)
-            elif geometry.offset.any():
-                frames[mesh] = (geometry.offset, 1.0)
+            prim = self.out["meshes"][mesh]["primitives"][number]
+            if prim.get("targets") and len(prim["targets"]) != len(targets):
+                raise MeshbitsError(
+                    f"mesh {mesh} primitive {number}: its {len(prim['targets'])} morph "
+                    f"targets were not encoded"
+                )
+            _point_at(prim, attributes, indices, draco)
+            if targets:
+                prim["targets"] = [dict(target) for target in targets]
 
     def _meshopt_view(self, stream: dict[str, Any]) -> dict[str, Any]:
         """A meshopt stream's bufferView: its raw bytes in the fallback buffer, its
@@ -365,6 +388,21 @@ class _Rebuilt:
         if stream["mode"] == "ATTRIBUTES":
             view["byteStride"] = stream["stride"]
         return view
+
+
+def _frames(geometries: list[CompressedGeometry]) -> dict[int, Frame]:
+    """``mesh -> (origin, step)`` of every mesh whose positions are stored in a frame of
+    their own: integer codes (meshopt), or positions moved to their centre."""
+    frames: dict[int, Frame] = {}
+    for geometry in geometries:
+        encoding = geometry.encoding
+        for mesh, _ in geometry.targets:
+            if encoding.dequantize is not None:
+                origin, step = encoding.dequantize
+                frames[mesh] = (geometry.offset + origin, step)
+            elif geometry.offset.any():
+                frames[mesh] = (geometry.offset, 1.0)
+    return frames
 
 
 def _set_extensions(out: dict[str, Any], codec: str, compressed: bool) -> None:
@@ -429,7 +467,15 @@ def _apply_frames(
         if mesh is None or mesh not in frames:
             continue
         origin, step = frames[mesh]
-        alone = set(node) <= {"mesh", "name", "translation", "rotation", "scale", "matrix"}
+        alone = set(node) <= {
+            "mesh",
+            "name",
+            "translation",
+            "rotation",
+            "scale",
+            "matrix",
+            "weights",
+        }
         if not alone or index in animated:
             child: dict[str, Any] = {"mesh": mesh, "translation": [json_number(x) for x in origin]}
             if step != 1.0:
