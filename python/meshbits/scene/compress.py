@@ -22,6 +22,7 @@ from ..files import asset_bytes, check_not_an_input
 from ..formats.gltf.document import Document, PrimitiveData
 from ..formats.gltf.write import (
     CompressedGeometry,
+    EncodedAnimations,
     document_size,
     image_key,
     rebuild_document,
@@ -30,6 +31,7 @@ from ..formats.gltf.write import (
 from ..formats.open import load_document
 from ..results import Progress, ProgressCallback
 from ..units import length_unit_of
+from .animation import AnimationReport, compress_animations
 from .primitive_search import search_primitive
 from .primitives import (
     Job,
@@ -124,9 +126,14 @@ def compress_scene(
             scene.document, jobs, budget, codec, seed, certify, run_at, scene.world_size
         )
     encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
-    files, size_bytes = _write(
-        scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes
+    animations, animation_report = compress_animations(
+        scene.document, target_error, codec == "meshopt"
     )
+    files, size_bytes, verbatim = _write(
+        scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes, animations
+    )
+    if verbatim:
+        animation_report = AnimationReport.input_kept(animation_report)
     return scene_result(
         constraint,
         budget,
@@ -141,6 +148,7 @@ def compress_scene(
         scene.document.notes,
         given.describe(),
         [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(scene.kept),
+        animation_report,
     )
 
 
@@ -265,17 +273,21 @@ def _run_at(
 
 
 def scene_document(
-    document: Document, jobs: list[Job], encodings: list[PrimitiveEncoding | None], codec: str
+    document: Document,
+    jobs: list[Job],
+    encodings: list[PrimitiveEncoding | None],
+    codec: str,
+    animations: EncodedAnimations | None = None,
 ) -> tuple[dict[str, Any], bytes]:
     """The output document (JSON) and its buffer: the jobs compressed (not kept, with an
     encoding) written by :func:`meshbits.formats.gltf.write.rebuild_document`, each once
-    for every primitive of its ``targets``."""
+    for every primitive of its ``targets``, and the compressed ``animations``."""
     geometries = [
         CompressedGeometry(job.targets, encoding, job.offset)
         for job, encoding in zip(jobs, encodings, strict=True)
         if job.kept is None and encoding is not None
     ]
-    return rebuild_document(document, geometries, codec)
+    return rebuild_document(document, geometries, codec, animations)
 
 
 def _write(
@@ -286,21 +298,23 @@ def _write(
     source: Any,
     output: str | Path | None,
     input_bytes: int,
-) -> tuple[list[str], int]:
+    animations: EncodedAnimations | None,
+) -> tuple[list[str], int, bool]:
     """Write the output (when asked): clusters whose data would grow kept as they were,
     every primitive kept when the file would be larger than a glTF input (and a .glb
-    input itself written when even that is larger). Returns the files and the size."""
+    input itself written when even that is larger). Returns the files, the size and
+    whether the input itself was written."""
     _keep_what_grows(document, jobs, encodings)
-    out, data = scene_document(document, jobs, encodings, codec)
+    out, data = scene_document(document, jobs, encodings, codec, animations)
     written: bytes | None = None
     grew = _larger_than_input(source, output, input_bytes, out, data)
     if grew is not None:
         for job in jobs:
             job.kept = job.kept or grew
-        out, data = scene_document(document, jobs, encodings, codec)
+        out, data = scene_document(document, jobs, encodings, codec, animations)
         if _larger_than_input(source, output, input_bytes, out, data) and _verbatim(source, output):
             written = Path(source).read_bytes()
-    return write_document(out, data, output, written)
+    return (*write_document(out, data, output, written), written is not None)
 
 
 def _check_scene_arguments(

@@ -1,0 +1,116 @@
+"""Compressed samplers laid out for the writer
+(:class:`meshbits.formats.gltf.write.EncodedAnimations`): as gltfpack lays them out, one
+bufferView per kind of record (key times; rotations; translations and scales; weights)
+shared by every sampler of the file, each sampler's accessors at their offsets in it, so
+that meshoptimizer's vertex codec compresses similar records together. Key times that
+several samplers keep alike are written once. With meshopt every bufferView whose records
+the vertex codec takes (a multiple of 4 bytes, at most 256) is written with
+``EXT_meshopt_compression`` (mode ``ATTRIBUTES``, its filter); else plainly."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import _core
+from ..formats.gltf.write import EncodedAnimations, json_number
+from .keyframes import EncodedTrack
+
+__all__ = ["WrittenSampler", "assemble"]
+
+#: Largest record the vertex codec encodes (bytes).
+VERTEX_CODEC_STRIDE = 256
+
+
+@dataclass(frozen=True)
+class WrittenSampler:
+    """A sampler as written: its ``animation`` and ``sampler`` indices, the kept key
+    ``times`` (float32 values), its ``path`` and its values (``track``: the kept keys)."""
+
+    animation: int
+    sampler: int
+    times: np.ndarray = field(repr=False)
+    path: str
+    track: EncodedTrack = field(repr=False)
+
+
+@dataclass
+class _Stream:
+    stride: int
+    filter: str
+    parts: list[bytes] = field(default_factory=list)
+    length: int = 0
+
+    def add(self, raw: bytes) -> int:
+        offset = self.length
+        self.parts.append(raw)
+        self.length += len(raw)
+        return offset
+
+
+def _value_accessor(written: WrittenSampler, stream: int, offset: int) -> dict:
+    """The accessor of a sampler's values: weights as scalars, one per target and key."""
+    track = written.track
+    width = track.decoded.shape[1]
+    keys = len(track.decoded)
+    spec: dict = {
+        "bufferView": stream,
+        "byteOffset": offset,
+        "componentType": track.component_type,
+        "count": keys * width if written.path == "weights" else keys,
+        "type": "SCALAR" if written.path == "weights" else {3: "VEC3", 4: "VEC4"}[width],
+    }
+    if track.normalized:
+        spec["normalized"] = True
+    return spec
+
+
+def assemble(samplers: list[WrittenSampler], meshopt: bool) -> EncodedAnimations:
+    """The streams, accessors and sampler map of the compressed samplers."""
+    streams: dict[tuple, _Stream] = {}
+    accessors: list[dict] = []
+    times_seen: dict[bytes, int] = {}
+    mapping: dict[tuple[int, int], tuple[int, int]] = {}
+
+    def stream(key: tuple, stride: int, filter_name: str) -> tuple[int, _Stream]:
+        if key not in streams:
+            streams[key] = _Stream(stride, filter_name)
+        return list(streams).index(key), streams[key]
+
+    for written in samplers:
+        times = written.times.astype("<f4")
+        raw_times = times.tobytes()
+        if raw_times not in times_seen:
+            number, target = stream(("times",), 4, "NONE")
+            accessors.append(
+                {
+                    "bufferView": number,
+                    "byteOffset": target.add(raw_times),
+                    "componentType": 5126,
+                    "count": len(times),
+                    "type": "SCALAR",
+                    "min": [json_number(times[0])],
+                    "max": [json_number(times[-1])],
+                }
+            )
+            times_seen[raw_times] = len(accessors) - 1
+        track = written.track
+        key = ("values", track.filter, track.stride, track.component_type)
+        number, target = stream(key, track.stride, track.filter)
+        accessors.append(_value_accessor(written, number, target.add(track.raw)))
+        mapping[(written.animation, written.sampler)] = (times_seen[raw_times], len(accessors) - 1)
+    out = []
+    for item in streams.values():
+        raw = b"".join(item.parts)
+        count = len(raw) // item.stride
+        codec = meshopt and item.stride % 4 == 0 and item.stride <= VERTEX_CODEC_STRIDE
+        data = (
+            _core.meshopt_encode_vertices(np.frombuffer(raw, dtype=np.uint8), item.stride)
+            if codec
+            else None
+        )
+        out.append(
+            {"raw": raw, "data": data, "stride": item.stride, "count": count, "filter": item.filter}
+        )
+    return EncodedAnimations(out, accessors, mapping)
