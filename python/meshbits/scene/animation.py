@@ -243,6 +243,7 @@ def _thinned(
 def _subset(track: EncodedTrack, kept: np.ndarray) -> EncodedTrack:
     """The encoded rows of the kept keys."""
     rows = np.frombuffer(track.raw, dtype=np.uint8).reshape(len(track.decoded), track.stride)
+    plain = np.frombuffer(track.plain, dtype=np.uint8).reshape(len(track.decoded), -1)
     return EncodedTrack(
         rows[kept].tobytes(),
         track.stride,
@@ -251,6 +252,7 @@ def _subset(track: EncodedTrack, kept: np.ndarray) -> EncodedTrack:
         track.bits,
         track.component_type,
         track.normalized,
+        plain[kept].tobytes(),
     )
 
 

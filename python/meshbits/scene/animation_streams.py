@@ -3,9 +3,12 @@
 bufferView per kind of record (key times; rotations; translations and scales; weights)
 shared by every sampler of the file, each sampler's accessors at their offsets in it, so
 that meshoptimizer's vertex codec compresses similar records together. Key times that
-several samplers keep alike are written once. With meshopt every bufferView whose records
-the vertex codec takes (a multiple of 4 bytes, at most 256) is written with
-``EXT_meshopt_compression`` (mode ``ATTRIBUTES``, its filter); else plainly."""
+several samplers keep alike are written once. With meshopt each bufferView is written the
+smallest of three ways that all give a reader the same values: its filter's records
+through the vertex codec (``EXT_meshopt_compression``, mode ``ATTRIBUTES``), the values
+themselves through the vertex codec (no filter), or the values plainly (small streams,
+where the codec's headers cost more than they save); the vertex codec only for records
+of a multiple of 4 bytes, at most 256. Without meshopt, plainly."""
 
 from __future__ import annotations
 
@@ -37,16 +40,36 @@ class WrittenSampler:
 
 @dataclass
 class _Stream:
+    """A bufferView being laid out: its records under its filter (``parts``) and as a
+    reader gets them (``plain``)."""
+
     stride: int
     filter: str
     parts: list[bytes] = field(default_factory=list)
+    plain: list[bytes] = field(default_factory=list)
     length: int = 0
 
-    def add(self, raw: bytes) -> int:
+    def add(self, raw: bytes, plain: bytes | None = None) -> int:
         offset = self.length
         self.parts.append(raw)
+        self.plain.append(raw if plain is None else plain)
         self.length += len(raw)
         return offset
+
+    def written(self, meshopt: bool) -> dict:
+        """The stream as the writer takes it: the smallest way (module docstring)."""
+        raw, plain = b"".join(self.parts), b"".join(self.plain)
+        best: dict = {"raw": plain, "data": None, "stride": self.stride, "filter": "NONE"}
+        best["count"] = len(plain) // self.stride
+        if not meshopt or self.stride % 4 or self.stride > VERTEX_CODEC_STRIDE:
+            return best
+        options = [(self.filter, raw)] if self.filter != "NONE" else []
+        options.append(("NONE", plain))
+        for name, records in options:
+            data = _core.meshopt_encode_vertices(np.frombuffer(records, np.uint8), self.stride)
+            if len(data) < len(best["data"] if best["data"] is not None else plain):
+                best = {**best, "data": data, "filter": name}
+        return best
 
 
 def _value_accessor(written: WrittenSampler, stream: int, offset: int) -> dict:
@@ -98,19 +121,7 @@ def assemble(samplers: list[WrittenSampler], meshopt: bool) -> EncodedAnimations
         track = written.track
         key = ("values", track.filter, track.stride, track.component_type)
         number, target = stream(key, track.stride, track.filter)
-        accessors.append(_value_accessor(written, number, target.add(track.raw)))
+        accessors.append(_value_accessor(written, number, target.add(track.raw, track.plain)))
         mapping[(written.animation, written.sampler)] = (times_seen[raw_times], len(accessors) - 1)
-    out = []
-    for item in streams.values():
-        raw = b"".join(item.parts)
-        count = len(raw) // item.stride
-        codec = meshopt and item.stride % 4 == 0 and item.stride <= VERTEX_CODEC_STRIDE
-        data = (
-            _core.meshopt_encode_vertices(np.frombuffer(raw, dtype=np.uint8), item.stride)
-            if codec
-            else None
-        )
-        out.append(
-            {"raw": raw, "data": data, "stride": item.stride, "count": count, "filter": item.filter}
-        )
+    out = [item.written(meshopt) for item in streams.values()]
     return EncodedAnimations(out, accessors, mapping)

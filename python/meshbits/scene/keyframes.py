@@ -138,10 +138,11 @@ def value_error(
 
 @dataclass(frozen=True)
 class EncodedTrack:
-    """A track's values as written: ``raw`` the bytes a reader decodes to (``stride``
-    bytes a key), ``filter`` the meshopt filter (``"NONE"`` for none), ``decoded`` what a
-    reader gets back (float64, ``(n, w)``), ``bits`` the filter's K (0 without a filter)
-    and the accessor's ``componentType`` and ``normalized``."""
+    """A track's values as written: ``raw`` the filter's records (``stride`` bytes a
+    key), ``filter`` the meshopt filter (``"NONE"`` for none), ``decoded`` what a reader
+    gets back (float64, ``(n, w)``), ``bits`` the filter's K (0 without a filter), the
+    accessor's ``componentType`` and ``normalized``, and ``plain`` the bytes a reader
+    gets (the filter undone: the same ``decoded`` values stored without a filter)."""
 
     raw: bytes
     stride: int
@@ -150,6 +151,7 @@ class EncodedTrack:
     bits: int
     component_type: int
     normalized: bool
+    plain: bytes
 
 
 def _decode_filtered(raw: np.ndarray, stride: int, filter_name: str) -> bytes:
@@ -165,7 +167,8 @@ def _quaternions(values: np.ndarray, bits: int) -> EncodedTrack:
     raw = _core.meshopt_encode_quaternions(np.ascontiguousarray(unit, dtype=np.float32), bits)
     shorts = np.frombuffer(_decode_filtered(raw, 8, "QUATERNION"), dtype="<i2").reshape(-1, 4)
     decoded = np.maximum(shorts.astype(np.float64) / 32767.0, -1.0)
-    return EncodedTrack(raw.tobytes(), 8, "QUATERNION", decoded, bits, 5122, True)
+    plain = shorts.astype("<i2").tobytes()
+    return EncodedTrack(raw.tobytes(), 8, "QUATERNION", decoded, bits, 5122, True, plain)
 
 
 def _exponential(values: np.ndarray, bits: int) -> EncodedTrack:
@@ -175,7 +178,8 @@ def _exponential(values: np.ndarray, bits: int) -> EncodedTrack:
     )
     floats = np.frombuffer(_decode_filtered(raw, 4 * width, "EXPONENTIAL"), dtype="<f4")
     decoded = floats.reshape(-1, width).astype(np.float64)
-    return EncodedTrack(raw.tobytes(), 4 * width, "EXPONENTIAL", decoded, bits, 5126, False)
+    plain = floats.astype("<f4").tobytes()
+    return EncodedTrack(raw.tobytes(), 4 * width, "EXPONENTIAL", decoded, bits, 5126, False, plain)
 
 
 def _plain(values: np.ndarray, path: str) -> EncodedTrack:
@@ -185,10 +189,12 @@ def _plain(values: np.ndarray, path: str) -> EncodedTrack:
         unit = values / np.linalg.norm(values, axis=1, keepdims=True)
         shorts = np.round(unit * 32767.0).astype("<i2")
         decoded = np.maximum(shorts.astype(np.float64) / 32767.0, -1.0)
-        return EncodedTrack(shorts.tobytes(), 8, "NONE", decoded, 16, 5122, True)
+        raw = shorts.tobytes()
+        return EncodedTrack(raw, 8, "NONE", decoded, 16, 5122, True, raw)
     floats = values.astype("<f4")
     decoded = floats.astype(np.float64)
-    return EncodedTrack(floats.tobytes(), 4 * values.shape[1], "NONE", decoded, 0, 5126, False)
+    raw = floats.tobytes()
+    return EncodedTrack(raw, 4 * values.shape[1], "NONE", decoded, 0, 5126, False, raw)
 
 
 def encode_track(
@@ -214,7 +220,8 @@ def encode_track(
     if path == "rotation":
         floats = values.astype("<f4")
         decoded = floats.astype(np.float64)
-        return EncodedTrack(floats.tobytes(), 16, "NONE", decoded, 0, 5126, False)
+        raw = floats.tobytes()
+        return EncodedTrack(raw, 16, "NONE", decoded, 0, 5126, False, raw)
     return None
 
 
