@@ -109,13 +109,14 @@ def _sample_cubic(times: np.ndarray, values: np.ndarray, path: str, at: np.ndarr
 
 
 def midpoints(times: np.ndarray, between: int) -> np.ndarray:
-    """The key times and ``between`` evenly spaced times inside each interval, sorted."""
+    """The key times and ``between`` evenly spaced times inside each interval, in order:
+    key ``k`` at index ``k (between + 1)``."""
     times = np.asarray(times, dtype=np.float64)
     if len(times) < 2 or between < 1:
         return times.copy()
-    fractions = np.arange(1, between + 1) / (between + 1)
-    inner = times[:-1, None] + np.diff(times)[:, None] * fractions[None, :]
-    return np.sort(np.concatenate([times, inner.reshape(-1)]))
+    fractions = np.arange(0, between + 1) / (between + 1)
+    grid = times[:-1, None] + np.diff(times)[:, None] * fractions[None, :]
+    return np.concatenate([grid.reshape(-1), times[-1:]])
 
 
 def value_error(
@@ -227,20 +228,28 @@ def encode_track(
 
 def _segment_ok(
     track: tuple[np.ndarray, np.ndarray, str, str],
-    check: tuple[np.ndarray, np.ndarray],
+    check: tuple[np.ndarray, np.ndarray, int],
     i: int,
     j: int,
     tolerance: float,
     target_reach: np.ndarray | None,
 ) -> bool:
     """Whether keys ``i`` and ``j`` alone (the decoded values) stay within ``tolerance``
-    of the original at every check time between them."""
+    of the original at every check time from key ``i`` to key ``j`` (the check times are
+    the keys and ``per - 1`` times inside each interval: key ``k`` is check ``k per``)."""
     times, decoded, interpolation, path = track
-    check_times, original = check
-    lo, hi = np.searchsorted(check_times, [times[i], times[j]], side="left")
-    hi = np.searchsorted(check_times, times[j], side="right")
-    at = check_times[lo:hi]
-    kept = sample_track(times[[i, j]], decoded[[i, j]], interpolation, path, at)
+    check_times, original, per = check
+    lo, hi = i * per, j * per + 1
+    a, b = decoded[i], decoded[j]
+    if interpolation == "STEP":
+        kept = np.repeat(a[None], hi - lo, axis=0)
+        kept[-1] = b
+    else:
+        t = (check_times[lo:hi] - times[i]) / (times[j] - times[i])
+        if path == "rotation":
+            kept = slerp(a[None], b[None], t)
+        else:
+            kept = a + (b - a) * t[:, None]
     return bool(value_error(path, original[lo:hi], kept, target_reach).max() <= tolerance)
 
 
@@ -268,7 +277,7 @@ def thin_keys(
     if n <= 2:
         return np.arange(n)
     track = (np.asarray(times, dtype=np.float64), decoded, interpolation, path)
-    check = (check_times, reference)
+    check = (check_times, reference, between + 1)
     kept, i = [0], 0
     while i < n - 1:
         good, step = i + 1, 1
