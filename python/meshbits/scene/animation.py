@@ -18,12 +18,15 @@ For each animation:
    scale ``f tau / rho`` (``rho`` the farthest the node's subtree reaches from its origin
    in world units, influence radii included; a subtree reaching nowhere takes the
    animation's largest reach); weights ``f tau / sigma`` (``sigma`` the mesh's largest
-   world stretch). Values are quantized within a quarter of that share
+   world stretch). Values are quantized within a fraction ``q`` of that share
    (:func:`meshbits.scene.keyframes.encode_track`), then keys removed within all of it
-   (:func:`meshbits.scene.keyframes.thin_keys`).
+   (:func:`meshbits.scene.keyframes.thin_keys`); samplers of the same key times keep the
+   union of their kept keys when that costs fewer bytes
+   (:func:`meshbits.scene.animation_streams.share_keys`).
 4. The whole animation is measured: every node's ``dev_n(t)`` at every time of step 2.
-   The first share ``f`` of 1, 1/2, ..., 1/64 whose largest deviation is within ``tau``
-   is written; if none is, the animation is copied as it is (counted).
+   For each ``q`` of :data:`QUANTIZATION_SHARES`, the first share ``f`` of 1, 1/2, ...,
+   1/64 whose largest deviation is within ``tau``; the answer of fewer bytes is written.
+   If there is none, the animation is copied as it is (counted).
 
 An animation whose samplers would all become one key keeps the last key of a sampler that
 ended it, so its duration is unchanged.
@@ -31,6 +34,7 @@ ended it, so its duration is unchanged.
 
 from __future__ import annotations
 
+import json
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -40,7 +44,7 @@ from ..formats.gltf.document import Document
 from ..formats.gltf.write import EncodedAnimations
 from .animation_input import SamplerInput, accessor_bytes, read_samplers
 from .animation_paths import Skeleton, node_deviations, read_skeleton, world_matrices
-from .animation_streams import WrittenSampler, assemble
+from .animation_streams import WrittenSampler, assemble, layout_bytes, share_keys
 from .keyframes import EncodedTrack, encode_track, midpoints, sample_track, thin_keys
 
 __all__ = ["AnimationReport", "compress_animations"]
@@ -49,8 +53,9 @@ __all__ = ["AnimationReport", "compress_animations"]
 BETWEEN = 3
 #: Shares of the tolerance each channel is given, tried in this order.
 SHARES = tuple(2.0**-k for k in range(7))
-#: Fraction of a channel's share its quantization may take.
-QUANTIZATION_SHARE = 0.25
+#: Fractions of a channel's share its quantization may take, each tried (the layout of
+#: fewer bytes is written).
+QUANTIZATION_SHARES = (0.25, 0.75)
 #: Times measured at once (bounds the memory of the world matrices).
 CHUNK = 512
 
@@ -219,13 +224,13 @@ def _target_reach(skeleton: Skeleton, sampler: SamplerInput) -> np.ndarray | Non
 
 
 def _thinned(
-    sampler: SamplerInput, share: float, meshopt: bool, skeleton: Skeleton
+    sampler: SamplerInput, share: float, quantization: float, meshopt: bool, skeleton: Skeleton
 ) -> tuple[np.ndarray, EncodedTrack] | None:
     """A sampler's kept keys and their encoding within ``share``; None if no encoding is
-    within a quarter of it."""
+    within ``quantization`` of it."""
     assert sampler.path is not None
     reach = _target_reach(skeleton, sampler)
-    encoded = encode_track(sampler.path, sampler.values, QUANTIZATION_SHARE * share, meshopt, reach)
+    encoded = encode_track(sampler.path, sampler.values, quantization * share, meshopt, reach)
     if encoded is None:
         return None
     kept = thin_keys(
@@ -296,7 +301,11 @@ def _largest_deviation(
 
 
 def _attempt(
-    measure: _Measure, samplers: list[SamplerInput], share: float, meshopt: bool
+    measure: _Measure,
+    samplers: list[SamplerInput],
+    share: float,
+    quantization: float,
+    meshopt: bool,
 ) -> tuple[dict[int, tuple[np.ndarray, EncodedTrack]], dict[int, str]]:
     """Every compressible sampler thinned at ``share`` of the tolerance: ``sampler ->
     (kept keys, encoding of every key)``, and the samplers no encoding could take."""
@@ -308,7 +317,7 @@ def _attempt(
         if s.path == "weights" and _target_reach(measure.skeleton, s) is None:
             refused[s.index] = "weights of a node without morph targets"
             continue
-        result = _thinned(s, _share(measure, s, share), meshopt, measure.skeleton)
+        result = _thinned(s, _share(measure, s, share), quantization, meshopt, measure.skeleton)
         if result is None:
             refused[s.index] = "no encoding within its share of the tolerance"
         else:
@@ -318,19 +327,54 @@ def _attempt(
     return {k: (kept[k], chosen[k][1]) for k in chosen}, refused
 
 
-def _compress_animation(
-    skeleton: Skeleton, samplers: list[SamplerInput], tolerance: float, meshopt: bool
-) -> tuple[dict[int, tuple[np.ndarray, EncodedTrack]], dict[int, str], float, int]:
-    """One animation's samplers written (``sampler -> (kept keys, their encoding)``),
-    those copied and why, the largest deviation measured and the times measured at."""
-    union = np.unique(np.concatenate([s.times for s in samplers if s.path is not None] or [[]]))
-    times = midpoints(union, BETWEEN)
-    if not len(times) or tolerance <= 0:
-        return {}, {}, 0.0, 0
-    measure = _measure(skeleton, samplers, times)
+def _cheaper_layout(
+    measure: _Measure,
+    samplers: list[SamplerInput],
+    chosen: dict[int, tuple[np.ndarray, EncodedTrack]],
+    deviation: float,
+    tolerance: float,
+    meshopt: bool,
+) -> tuple[dict[int, tuple[np.ndarray, EncodedTrack]], float]:
+    """The kept keys of :func:`meshbits.scene.animation_streams.share_keys` when they
+    cost fewer bytes and are still within the tolerance (measured again), with the
+    largest deviation; else ``chosen`` as it was."""
+    by_index = samplers_by_index(samplers)
+    shared = share_keys(
+        {
+            k: (by_index[k].times, kept, track, by_index[k].path or "")
+            for k, (kept, track) in chosen.items()
+        },
+        meshopt,
+        _subset,
+    )
+    if all(np.array_equal(shared[k], kept) for k, (kept, _) in chosen.items()):
+        return chosen, deviation
+    tracks = {
+        k: (by_index[k].times[shared[k]], track.decoded[shared[k]])
+        for k, (_, track) in chosen.items()
+    }
+    again = _largest_deviation(measure, samplers, tracks)
+    if again > tolerance:
+        return chosen, deviation
+    return {k: (shared[k], track) for k, (_, track) in chosen.items()}, again
+
+
+_Found = tuple[dict[int, tuple[np.ndarray, EncodedTrack]], dict[int, str], float]
+
+
+def _search(
+    measure: _Measure,
+    samplers: list[SamplerInput],
+    tolerance: float,
+    quantization: float,
+    meshopt: bool,
+) -> _Found | None:
+    """The first share of :data:`SHARES` whose animation is within ``tolerance``: the
+    samplers written (``sampler -> (kept keys, their encoding)``), those refused, the
+    largest deviation; None when none is."""
+    by_index = samplers_by_index(samplers)
     for share in SHARES:
-        chosen, refused = _attempt(measure, samplers, share * tolerance, meshopt)
-        by_index = samplers_by_index(samplers)
+        chosen, refused = _attempt(measure, samplers, share * tolerance, quantization, meshopt)
         tracks = {
             k: (by_index[k].times[kept], track.decoded[kept]) for k, (kept, track) in chosen.items()
         }
@@ -339,14 +383,49 @@ def _compress_animation(
                 s.copied = refused[s.index]
         deviation = _largest_deviation(measure, samplers, tracks)
         if deviation <= tolerance:
-            return (
-                {k: (kept, _subset(track, kept)) for k, (kept, track) in chosen.items()},
-                refused,
-                deviation,
-                len(times),
+            chosen, deviation = _cheaper_layout(
+                measure, samplers, chosen, deviation, tolerance, meshopt
             )
-    reason = f"not within the tolerance at 1/{int(1 / SHARES[-1])} of it a channel"
-    return {}, {s.index: reason for s in samplers if s.copied is None}, 0.0, len(times)
+            written = {k: (kept, _subset(track, kept)) for k, (kept, track) in chosen.items()}
+            return written, refused, deviation
+    return None
+
+
+def _found_bytes(found: _Found, samplers: list[SamplerInput], meshopt: bool) -> int:
+    """What a search's answer costs written (:func:`layout_bytes`)."""
+    by_index = samplers_by_index(samplers)
+    return layout_bytes(
+        [
+            WrittenSampler(0, k, by_index[k].times[kept], by_index[k].path or "", track)
+            for k, (kept, track) in found[0].items()
+        ],
+        meshopt,
+    )
+
+
+def _compress_animation(
+    skeleton: Skeleton, samplers: list[SamplerInput], tolerance: float, meshopt: bool
+) -> tuple[dict[int, tuple[np.ndarray, EncodedTrack]], dict[int, str], float, int]:
+    """One animation's samplers written (``sampler -> (kept keys, their encoding)``),
+    those copied and why, the largest deviation measured and the times measured at: the
+    answer of fewer bytes over :data:`QUANTIZATION_SHARES`."""
+    union = np.unique(np.concatenate([s.times for s in samplers if s.path is not None] or [[]]))
+    times = midpoints(union, BETWEEN)
+    if not len(times) or tolerance <= 0:
+        return {}, {}, 0.0, 0
+    measure = _measure(skeleton, samplers, times)
+    best: _Found | None = None
+    for quantization in QUANTIZATION_SHARES:
+        found = _search(measure, samplers, tolerance, quantization, meshopt)
+        if found is not None and (
+            best is None
+            or _found_bytes(found, samplers, meshopt) < _found_bytes(best, samplers, meshopt)
+        ):
+            best = found
+    if best is None:
+        reason = f"not within the tolerance at 1/{int(1 / SHARES[-1])} of it a channel"
+        return {}, {s.index: reason for s in samplers if s.copied is None}, 0.0, len(times)
+    return (*best, len(times))
 
 
 def samplers_by_index(samplers: list[SamplerInput]) -> dict[int, SamplerInput]:
@@ -363,6 +442,41 @@ def _input_bytes(document: Document) -> int:
         for key in ("input", "output")
     }
     return sum(accessor_bytes(document, a) for a in accessors)
+
+
+#: Why an animation whose compressed data would not be smaller is copied.
+NOT_SMALLER = "compressed, it would not be smaller"
+
+
+def _animation(
+    document: Document, skeleton: Skeleton, index: int, tolerance: float, meshopt: bool
+) -> tuple[list[SamplerInput], str | None, dict[int, tuple[np.ndarray, EncodedTrack]], float, int]:
+    """Animation ``index`` compressed: its samplers (each copied one saying why), why it
+    is copied whole (or None), the samplers written, the largest deviation and the times
+    measured. Its samplers are copied when their compressed data and accessors would not
+    be fewer bytes than the input's."""
+    samplers, whole = read_samplers(document, index)
+    if whole is not None:
+        return samplers, whole, {}, 0.0, 0
+    chosen, refused, deviation, times = _compress_animation(skeleton, samplers, tolerance, meshopt)
+    if tolerance <= 0:
+        refused = {s.index: "no tolerance (a zero error budget)" for s in samplers}
+    for s in samplers:
+        if s.copied is None and s.index in refused:
+            s.copied = refused[s.index]
+    if chosen:
+        found: _Found = (chosen, refused, deviation)
+        specs = document.json["animations"][index]["samplers"]
+        used = {specs[k][key] for k in chosen for key in ("input", "output")}
+        before = sum(accessor_bytes(document, x) for x in used) + len(
+            json.dumps([document.json["accessors"][x] for x in used], separators=(",", ":"))
+        )
+        if _found_bytes(found, samplers, meshopt) >= before:
+            for s in samplers:
+                if s.index in chosen:
+                    s.copied = NOT_SMALLER
+            return samplers, None, {}, 0.0, times
+    return samplers, None, chosen, deviation, times
 
 
 def compress_animations(
@@ -382,18 +496,10 @@ def compress_animations(
     copied_accessors: set[int] = set()
     largest, measured, keys_before, keys_after = 0.0, 0, 0, 0
     for a, animation in enumerate(animations):
-        samplers, whole = read_samplers(document, a)
-        chosen: dict[int, tuple[np.ndarray, EncodedTrack]] = {}
-        if whole is None:
-            chosen, refused, deviation, times = _compress_animation(
-                skeleton, samplers, tolerance, meshopt
-            )
-            largest, measured = max(largest, deviation), measured + times
-            if tolerance <= 0:
-                refused = {s.index: "no tolerance (a zero error budget)" for s in samplers}
-            for s in samplers:
-                if s.copied is None and s.index in refused:
-                    s.copied = refused[s.index]
+        samplers, whole, chosen, deviation, times = _animation(
+            document, skeleton, a, tolerance, meshopt
+        )
+        largest, measured = max(largest, deviation), measured + times
         by_index = samplers_by_index(samplers)
         for k, sampler in enumerate(animation.get("samplers", [])):
             if k in chosen:

@@ -12,6 +12,8 @@ of a multiple of 4 bytes, at most 256. Without meshopt, plainly."""
 
 from __future__ import annotations
 
+import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,7 +22,7 @@ from .. import _core
 from ..formats.gltf.write import EncodedAnimations, json_number
 from .keyframes import EncodedTrack
 
-__all__ = ["WrittenSampler", "assemble"]
+__all__ = ["WrittenSampler", "assemble", "layout_bytes", "share_keys"]
 
 #: Largest record the vertex codec encodes (bytes).
 VERTEX_CODEC_STRIDE = 256
@@ -125,3 +127,51 @@ def assemble(samplers: list[WrittenSampler], meshopt: bool) -> EncodedAnimations
         mapping[(written.animation, written.sampler)] = (times_seen[raw_times], len(accessors) - 1)
     out = [item.written(meshopt) for item in streams.values()]
     return EncodedAnimations(out, accessors, mapping)
+
+
+def layout_bytes(samplers: list[WrittenSampler], meshopt: bool) -> int:
+    """Bytes a set of samplers costs written alone: its streams and its accessors' JSON."""
+    encoded = assemble(samplers, meshopt)
+    data = sum(len(s["raw"] if s["data"] is None else s["data"]) for s in encoded.streams)
+    return data + len(json.dumps(encoded.accessors, separators=(",", ":")))
+
+
+def _layout(
+    tracks: dict[int, tuple[np.ndarray, np.ndarray, EncodedTrack, str]],
+    keys: dict[int, np.ndarray],
+    meshopt: bool,
+    subset: Callable[[EncodedTrack, np.ndarray], EncodedTrack],
+) -> int:
+    """:func:`layout_bytes` of the samplers of ``keys`` keeping those keys."""
+    written = [
+        WrittenSampler(0, k, tracks[k][0][kept], tracks[k][3], subset(tracks[k][2], kept))
+        for k, kept in keys.items()
+    ]
+    return layout_bytes(written, meshopt)
+
+
+def share_keys(
+    tracks: dict[int, tuple[np.ndarray, np.ndarray, EncodedTrack, str]],
+    meshopt: bool,
+    subset: Callable[[EncodedTrack, np.ndarray], EncodedTrack],
+) -> dict[int, np.ndarray]:
+    """Kept keys that cost fewer bytes: ``tracks`` maps a sampler to ``(its input's key
+    times, its kept keys, the encoding of every key, its path)``. Samplers with the same
+    input times and more than one kept key may all keep the union of their kept keys
+    instead: one key-time accessor for all of them, and records a key apart, which the
+    vertex codec compresses better, at the price of more records. The cheaper of the two
+    layouts (:func:`layout_bytes`) is returned, per group of samplers."""
+    groups: dict[bytes, list[int]] = {}
+    for k, (times, kept, _, _) in tracks.items():
+        if len(kept) > 1:
+            groups.setdefault(np.asarray(times, dtype=np.float64).tobytes(), []).append(k)
+    out = {k: kept for k, (_, kept, _, _) in tracks.items()}
+    for members in groups.values():
+        if len(members) < 2:
+            continue
+        union = np.unique(np.concatenate([tracks[k][1] for k in members]))
+        shared = {k: union for k in members}
+        own = {k: tracks[k][1] for k in members}
+        if _layout(tracks, shared, meshopt, subset) < _layout(tracks, own, meshopt, subset):
+            out.update(shared)
+    return out
