@@ -79,10 +79,12 @@ def accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
         import meshopt
 
         data = blob[ext["byteOffset"] : ext["byteOffset"] + ext["byteLength"]]
-        if ext["mode"] == "TRIANGLES":
-            return np.asarray(
-                meshopt.decode_gltf_buffer(data, ext["count"], ext["byteStride"], "TRIANGLES")
-            ).reshape(-1, 1)
+        if ext["mode"] in ("TRIANGLES", "INDICES"):
+            indices = np.asarray(
+                meshopt.decode_gltf_buffer(data, ext["count"], ext["byteStride"], ext["mode"])
+            ).reshape(-1)
+            first = spec.get("byteOffset", 0) // ext["byteStride"]
+            return indices[first : first + spec["count"]].reshape(-1, 1)
         name = ext.get("filter", "NONE")
         own = {"QUATERNION": decode_quaternion_filter, "EXPONENTIAL": decode_exponential_filter}
         rows = np.asarray(
