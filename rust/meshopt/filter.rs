@@ -51,7 +51,9 @@ pub fn encode_quaternions(quaternions: &[[f32; 4]], bits: u32) -> Result<Vec<u8>
         .iter()
         .position(|q| !q.iter().all(|c| c.is_finite()))
     {
-        return Err(MeshError::Parameter(format!("quaternion {i} is not finite")));
+        return Err(MeshError::Parameter(format!(
+            "quaternion {i} is not finite"
+        )));
     }
     Ok(meshopt::encode_filter_quat(quaternions, bits as i32)
         .into_iter()

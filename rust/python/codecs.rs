@@ -134,7 +134,9 @@ pub(super) fn meshopt_encode_exponential<'py>(
     mode: &str,
 ) -> PyResult<Bound<'py, PyArray2<u8>>> {
     if !values.is_c_contiguous() {
-        return Err(ShapeError::new_err("values must be a C-contiguous float32 array"));
+        return Err(ShapeError::new_err(
+            "values must be a C-contiguous float32 array",
+        ));
     }
     let (n, components) = (values.shape()[0], values.shape()[1]);
     let flat = values
