@@ -28,6 +28,7 @@ displacement of target ``k`` (mesh units).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +62,21 @@ def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     safe = np.where(near, 1.0, sin)
     wa = np.where(near, 1.0 - t, np.sin((1.0 - t) * angle) / safe)
     wb = np.where(near, t, np.sin(t * angle) / safe) * sign
+    return a * wa[:, None] + b * wb[:, None]
+
+
+def _slerp_pair(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """:func:`slerp` of one pair of quaternions at many fractions."""
+    d = float(a @ b)
+    if d < 0:
+        b, d = -b, -d
+    d = min(d, 1.0)
+    if 1.0 - d < SLERP_LINEAR:
+        wa, wb = 1.0 - t, t
+    else:
+        angle = math.acos(d)
+        sin = math.sin(angle)
+        wa, wb = np.sin((1.0 - t) * angle) / sin, np.sin(t * angle) / sin
     return a * wa[:, None] + b * wb[:, None]
 
 
@@ -247,7 +263,7 @@ def _segment_ok(
     else:
         t = (check_times[lo:hi] - times[i]) / (times[j] - times[i])
         if path == "rotation":
-            kept = slerp(a[None], b[None], t)
+            kept = _slerp_pair(a, b, t)
         else:
             kept = a + (b - a) * t[:, None]
     return bool(value_error(path, original[lo:hi], kept, target_reach).max() <= tolerance)
