@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 from independent import accessor, read_gltf
 from independent_animation import channels, node_worlds, posed_vertices, scene_roots
 
+from meshbits.errors import MeshbitsError
 from meshbits.formats.gltf.document import Document
 from meshbits.formats.gltf.write import glb_bytes, rebuild_document
 from meshbits.scene import compress_scene
@@ -264,3 +265,20 @@ def test_cubic_spline_is_copied_and_counted(tmp_path):
     source, report = _write(document, 0.01, True, tmp_path / "out.glb")
     assert report.compressed == 2 and report.copied == {"cubic spline (kept as it is)": 1}
     assert largest_deviation(source, tmp_path / "out.glb") <= 0.01 * (1 + SLACK)
+
+
+def test_animation_tolerance_is_the_callers(tmp_path):
+    """``animation_tolerance`` replaces the world error budget: 0 copies every sampler
+    (counted), a bad one is refused in one line."""
+    source = next((CORPUS / "RiggedSimple").glob("*.glb"), None)
+    if source is None:
+        pytest.skip("RiggedSimple is not in the corpus")
+    result = compress_scene(source, error=0.01, animation_tolerance=0.0, output=tmp_path / "a.glb")
+    assert result.animations.compressed == 0
+    assert result.animations.copied == {"a tolerance of 0": result.animations.samplers}
+    loose = compress_scene(source, error=0.01, animation_tolerance=0.05, output=tmp_path / "b.glb")
+    assert loose.animations.tolerance == 0.05
+    assert largest_deviation(source, tmp_path / "b.glb") <= 0.05 * (1 + SLACK)
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(MeshbitsError, match="animation_tolerance"):
+            compress_scene(source, error=0.01, animation_tolerance=bad)

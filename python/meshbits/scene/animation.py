@@ -460,7 +460,7 @@ def _animation(
         return samplers, whole, {}, 0.0, 0
     chosen, refused, deviation, times = _compress_animation(skeleton, samplers, tolerance, meshopt)
     if tolerance <= 0:
-        refused = {s.index: "no tolerance (a zero error budget)" for s in samplers}
+        refused = {s.index: "a tolerance of 0" for s in samplers}
     for s in samplers:
         if s.copied is None and s.index in refused:
             s.copied = refused[s.index]

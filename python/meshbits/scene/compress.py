@@ -68,6 +68,7 @@ def compress_scene(
     seed: int = 0,
     certify: bool = True,
     progress: ProgressCallback | None = None,
+    animation_tolerance: float | None = None,
 ) -> SceneResult:
     """Compress every triangle primitive of a scene to one world-space budget and write
     the scene with everything else kept.
@@ -105,6 +106,11 @@ def compress_scene(
     progress
         Called with a :class:`meshbits.Progress` per primitive searched (``str(event)``
         is its line).
+    animation_tolerance
+        How far any node, and any point it carries, may move from its original path when
+        the animations are compressed (world units; see docs/scenes.md). None: the world
+        error budget (with a size budget, the world error found); 0 copies them as they
+        are.
 
     Returns
     -------
@@ -112,6 +118,10 @@ def compress_scene(
     """
     start = time.perf_counter()
     given = _check_scene_arguments(error, size, relative, codec, normal_tolerance, output)
+    if animation_tolerance is not None and not 0 <= animation_tolerance < float("inf"):
+        raise MeshbitsError(
+            f"animation_tolerance must be a finite length >= 0, got {animation_tolerance}"
+        )
     constraint = given.kind
     scene = _plan(source, output, normal_tolerance)
     budget = given.resolve(scene.world_size)
@@ -127,7 +137,9 @@ def compress_scene(
         )
     encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
     animations, animation_report = compress_animations(
-        scene.document, target_error, codec == "meshopt"
+        scene.document,
+        target_error if animation_tolerance is None else animation_tolerance,
+        codec == "meshopt",
     )
     files, size_bytes, verbatim = _write(
         scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes, animations
