@@ -45,6 +45,10 @@ __all__ = [
     "value_error",
 ]
 
+#: Most components a row of the exponential filter takes (its records are at most 256
+#: bytes).
+MAX_EXPONENTIAL_WIDTH = 64
+
 #: Quaternions closer than this (1 - |a . b|) are interpolated linearly (slerp's weights
 #: are 0/0 there; the two agree to float64 rounding).
 SLERP_LINEAR = 1e-9
@@ -222,12 +226,17 @@ def encode_track(
     target_reach: np.ndarray | None = None,
 ) -> EncodedTrack | None:
     """A track's values at the fewest filter bits whose decoded values are within
-    ``tolerance`` of ``values`` (:func:`value_error`) at every key; without ``meshopt``
-    the plain encoding when within it. None when no encoding is."""
-    if meshopt:
-        bit_range = range(4, 17) if path == "rotation" else range(1, 25)
-        encode = _quaternions if path == "rotation" else _exponential
-        for bits in bit_range:
+    ``tolerance`` of ``values`` (:func:`value_error`) at every key (a rotation by the
+    quaternion filter, then beyond its 16 bits by the exponential one on its float
+    components); without ``meshopt`` the plain encoding when within it (a rotation as
+    normalized shorts, then float32). None when no encoding is."""
+    if meshopt and values.shape[1] <= MAX_EXPONENTIAL_WIDTH:
+        options = [(_exponential, bits) for bits in range(1, 25)]
+        if path == "rotation":
+            # Beyond the quaternion filter's 16 bits, float rotations through the
+            # exponential filter (glTF allows float rotations) before plain float32.
+            options = [(_quaternions, bits) for bits in range(4, 17)] + options[16:]
+        for encode, bits in options:
             encoded = encode(values, bits)
             if value_error(path, values, encoded.decoded, target_reach).max() <= tolerance:
                 return encoded
