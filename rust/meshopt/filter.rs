@@ -379,8 +379,12 @@ mod tests {
         meshopt::decode_filter_quat(&mut rows);
         for (q, r) in quaternions.iter().zip(&rows) {
             let d = r.map(|c| f32::from(c) / 32767.0);
-            let dot: f32 = (0..4).map(|k| q[k] * d[k]).sum();
-            assert!(dot.abs() > 0.99999, "{q:?} -> {d:?}");
+            let norm = d.iter().map(|c| c * c).sum::<f32>().sqrt();
+            let dot: f32 = (0..4).map(|k| q[k] * d[k]).sum::<f32>() / norm;
+            // 12 bits: each component within half a step (1 / (2047 sqrt 2)) of its value,
+            // the angle between them within 2e-3 radians (about 0.1 degrees).
+            let angle = 2.0 * dot.abs().min(1.0).acos();
+            assert!(angle < 2e-3, "{q:?} -> {d:?}: {angle}");
         }
         assert!(encode_quaternions(&quaternions, 3).is_err());
         let values: Vec<f32> = (0..300).map(|i| (i as f32 * 0.37).sin() * 40.0).collect();
