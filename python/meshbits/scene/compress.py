@@ -107,10 +107,8 @@ def compress_scene(
         Called with a :class:`meshbits.Progress` per primitive searched (``str(event)``
         is its line).
     animation_tolerance
-        How far any node, and any point it carries, may move from its original path when
-        the animations are compressed (world units; see docs/scenes.md). None: the world
-        error budget (with a size budget, the world error found); 0 copies them as they
-        are.
+        How far any node, and what it carries, may move off its animated path (world
+        units, docs/scenes.md). None: the world error (budget, or found); 0: copied.
 
     Returns
     -------
@@ -118,10 +116,7 @@ def compress_scene(
     """
     start = time.perf_counter()
     given = _check_scene_arguments(error, size, relative, codec, normal_tolerance, output)
-    if animation_tolerance is not None and not 0 <= animation_tolerance < float("inf"):
-        raise MeshbitsError(
-            f"animation_tolerance must be a finite length >= 0, got {animation_tolerance}"
-        )
+    _check_animation_tolerance(animation_tolerance)
     constraint = given.kind
     scene = _plan(source, output, normal_tolerance)
     budget = given.resolve(scene.world_size)
@@ -136,10 +131,9 @@ def compress_scene(
             scene.document, jobs, budget, codec, seed, certify, run_at, scene.world_size
         )
     encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
+    tolerance = target_error if animation_tolerance is None else animation_tolerance
     animations, animation_report = compress_animations(
-        scene.document,
-        target_error if animation_tolerance is None else animation_tolerance,
-        codec == "meshopt",
+        scene.document, tolerance, codec == "meshopt"
     )
     files, size_bytes, verbatim = _write(
         scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes, animations
@@ -327,6 +321,12 @@ def _write(
         if _larger_than_input(source, output, input_bytes, out, data) and _verbatim(source, output):
             written = Path(source).read_bytes()
     return (*write_document(out, data, output, written), written is not None)
+
+
+def _check_animation_tolerance(tolerance: float | None) -> None:
+    """Refuse an animation tolerance that is not a finite length >= 0."""
+    if tolerance is not None and not 0 <= tolerance < float("inf"):
+        raise MeshbitsError(f"animation_tolerance must be a finite length >= 0, got {tolerance}")
 
 
 def _check_scene_arguments(
