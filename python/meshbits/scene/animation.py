@@ -409,7 +409,8 @@ def _compress_animation(
     """One animation's samplers written (``sampler -> (kept keys, their encoding)``),
     those copied and why, the largest deviation measured and the times measured at: the
     answer of fewer bytes over :data:`QUANTIZATION_SHARES`."""
-    union = np.unique(np.concatenate([s.times for s in samplers if s.path is not None] or [[]]))
+    keyed = [s.times for s in samplers if s.path is not None]
+    union = np.unique(np.concatenate(keyed)) if keyed else np.zeros(0)
     times = midpoints(union, BETWEEN)
     if not len(times) or tolerance <= 0:
         return {}, {}, 0.0, 0

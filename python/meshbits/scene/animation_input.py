@@ -41,9 +41,10 @@ class SamplerInput:
 def accessor_bytes(document: Document, index: int) -> int:
     """Bytes an accessor's elements take, tightly packed (its count times element size)."""
     spec = document.json["accessors"][index]
-    dtype = COMPONENT_DTYPES.get(spec.get("componentType"))
+    code = spec.get("componentType")
+    itemsize = COMPONENT_DTYPES[code].itemsize if code in COMPONENT_DTYPES else 4
     width = TYPE_WIDTHS.get(spec.get("type"), 1)
-    return int(spec.get("count", 0)) * width * (dtype.itemsize if dtype is not None else 4)
+    return int(spec.get("count", 0)) * width * itemsize
 
 
 def _channels(animation: dict) -> dict[int, list[tuple[int | None, str | None]]]:

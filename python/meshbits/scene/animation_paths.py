@@ -166,8 +166,8 @@ def read_skeleton(document: Document) -> Skeleton:
             skin = document.json["skins"][int(node["skin"])]
             joints, ibm, radii = _skin_radii(document, skin, parts)
             skeleton.skin_joints[i] = (joints, ibm)
-            for joint, r in radii.items():
-                skeleton.radius[joint] = max(skeleton.radius[joint], r)
+            for joint, joint_radius in radii.items():
+                skeleton.radius[joint] = max(float(skeleton.radius[joint]), joint_radius)
             continue
         instances = document.instance_matrices(i) or [np.eye(4)]
         for positions, _, r in parts:
