@@ -11,9 +11,12 @@ import numpy as np
 
 from ..errors import MeshFileError
 from ..formats.gltf.document import Document
-from ..formats.gltf.spec import COMPONENT_DTYPES, TYPE_WIDTHS
+from ..formats.gltf.spec import TYPE_WIDTHS
 
 __all__ = ["SamplerInput", "accessor_bytes", "read_samplers"]
+
+#: Bytes of each glTF component type.
+COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
 
 #: Interpolations a sampler may name (glTF 2.0).
 INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
@@ -42,7 +45,7 @@ def accessor_bytes(document: Document, index: int) -> int:
     """Bytes an accessor's elements take, tightly packed (its count times element size)."""
     spec = document.json["accessors"][index]
     code = spec.get("componentType")
-    itemsize = COMPONENT_DTYPES[code].itemsize if code in COMPONENT_DTYPES else 4
+    itemsize = COMPONENT_BYTES.get(code, 4)
     width = TYPE_WIDTHS.get(spec.get("type"), 1)
     return int(spec.get("count", 0)) * width * itemsize
 
