@@ -27,43 +27,76 @@ from scipy.spatial import cKDTree
 # --- glTF ---------------------------------------------------------------------------------
 
 
+def decode_quaternion_filter(raw: bytes) -> bytes:
+    """EXT_meshopt_compression's QUATERNION filter undone as its specification writes the
+    decoder (Appendix B, float32 arithmetic): three components scaled by sqrt(2) over the
+    K-bit 1.0 in the fourth short (its low two bits the index of the omitted largest
+    component), the largest rebuilt as sqrt(1 - x^2 - y^2 - z^2), all stored as shorts."""
+    data = np.frombuffer(raw, dtype="<i2").reshape(-1, 4)
+    one = (data[:, 3] | 3).astype(np.float32)
+    scale = np.float32(1.0) / np.sqrt(np.float32(2.0))
+    xyz = data[:, :3].astype(np.float32) / one[:, None] * scale
+    w = np.sqrt(np.maximum(np.float32(0.0), np.float32(1.0) - (xyz * xyz).sum(axis=1)))
+    largest = (data[:, 3] & 3).astype(np.int64)
+    out = np.zeros_like(data)
+    rows = np.arange(len(data))
+    for k in range(3):
+        out[rows, (largest + k + 1) % 4] = np.round(xyz[:, k] * np.float32(32767.0))
+    out[rows, largest] = np.round(w * np.float32(32767.0))
+    return out.astype("<i2").tobytes()
+
+
+def decode_exponential_filter(raw: bytes) -> bytes:
+    """EXT_meshopt_compression's EXPONENTIAL filter undone as its specification writes the
+    decoder: each little-endian int32 ``2^e * m``, ``e`` its top 8 bits and ``m`` its low
+    24 bits, both signed."""
+    words = np.frombuffer(raw, dtype="<i4").astype(np.int64)
+    e = words >> 24
+    m = ((words << 40) >> 40).astype(np.float64)
+    return (np.ldexp(m, e)).astype("<f4").tobytes()
+
+
+def _strided(raw: bytes, start: int, stride: int, dtype: type, width: int, count: int):
+    """``count`` elements of ``width`` components from ``raw`` at ``start``, ``stride``
+    bytes apart."""
+    size = np.dtype(dtype).itemsize * width
+    data = np.frombuffer(raw, dtype=np.uint8, count=stride * (count - 1) + size, offset=start)
+    data = np.concatenate([data, np.zeros(stride * count - len(data), np.uint8)])
+    return data.reshape(count, stride)[:, :size].copy().view(dtype).reshape(count, width)
+
+
 def accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
-    """An accessor's values: floats for float and normalized accessors, else integers."""
+    """An accessor's values: floats for float and normalized accessors, else integers.
+    A meshopt bufferView is decoded by the meshopt package, its QUATERNION and EXPONENTIAL
+    filters by this module's own decoders of the specification."""
     spec = doc["accessors"][index]
     dtype = GLTF_DTYPES[spec["componentType"]]
     width = GLTF_WIDTHS[spec["type"]]
     view = doc["bufferViews"][spec["bufferView"]]
     ext = (view.get("extensions") or {}).get("EXT_meshopt_compression")
+    stride = view.get("byteStride") or np.dtype(dtype).itemsize * width
     if ext:
         import meshopt
 
         data = blob[ext["byteOffset"] : ext["byteOffset"] + ext["byteLength"]]
-        if ext["mode"] == "TRIANGLES":
-            return np.asarray(
-                meshopt.decode_gltf_buffer(data, ext["count"], ext["byteStride"], "TRIANGLES")
-            ).reshape(-1, 1)
+        if ext["mode"] in ("TRIANGLES", "INDICES"):
+            indices = np.asarray(
+                meshopt.decode_gltf_buffer(data, ext["count"], ext["byteStride"], ext["mode"])
+            ).reshape(-1)
+            first = spec.get("byteOffset", 0) // ext["byteStride"]
+            return indices[first : first + spec["count"]].reshape(-1, 1)
+        name = ext.get("filter", "NONE")
+        own = {"QUATERNION": decode_quaternion_filter, "EXPONENTIAL": decode_exponential_filter}
         rows = np.asarray(
             meshopt.decode_gltf_buffer(
-                data, ext["count"], ext["byteStride"], "ATTRIBUTES", ext.get("filter", "NONE")
+                data, ext["count"], ext["byteStride"], "ATTRIBUTES", "NONE" if name in own else name
             )
         )
-        values = np.frombuffer(rows.tobytes(), dtype=dtype).reshape(ext["count"], -1)[:, :width]
+        raw = own[name](rows.tobytes()) if name in own else rows.tobytes()
+        values = _strided(raw, spec.get("byteOffset", 0), stride, dtype, width, spec["count"])
     else:
         start = view.get("byteOffset", 0) + spec.get("byteOffset", 0)
-        stride = view.get("byteStride") or np.dtype(dtype).itemsize * width
-        raw = np.frombuffer(
-            blob,
-            dtype=np.uint8,
-            count=stride * (spec["count"] - 1) + np.dtype(dtype).itemsize * width,
-            offset=start,
-        )
-        raw = np.concatenate([raw, np.zeros(stride * spec["count"] - len(raw), np.uint8)])
-        values = (
-            raw.reshape(spec["count"], stride)[:, : np.dtype(dtype).itemsize * width]
-            .copy()
-            .view(dtype)
-            .reshape(spec["count"], width)
-        )
+        values = _strided(blob, start, stride, dtype, width, spec["count"])
     if spec.get("normalized"):
         scale = {np.int8: 127, np.uint8: 255, np.int16: 32767, np.uint16: 65535}[dtype]
         return np.maximum(values / scale, -1.0)

@@ -212,9 +212,9 @@ def written(tmp_path_factory):
     calls = []
     original = scene_compress.scene_document
 
-    def recording(document, jobs, encodings, codec):
+    def recording(document, jobs, encodings, codec, animations=None):
         calls.append((document, jobs, encodings))
-        return original(document, jobs, encodings, codec)
+        return original(document, jobs, encodings, codec, animations)
 
     out = folder / "scene_meshopt.glb"
     with pytest.MonkeyPatch.context() as patch:

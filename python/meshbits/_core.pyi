@@ -124,7 +124,9 @@ __all__ = [
     "hausdorff_directed",
     "hausdorff_from_samples",
     "meshopt_decode",
+    "meshopt_encode_exponential",
     "meshopt_encode_octahedral",
+    "meshopt_encode_quaternions",
     "meshopt_encode_triangles",
     "meshopt_encode_vertices",
     "meshopt_reorder",
@@ -224,6 +226,12 @@ def meshopt_encode_vertices(data: npt.NDArray[np.uint8], stride: int) -> bytes: 
 def meshopt_encode_triangles(faces: npt.NDArray[np.uint32], vertex_count: int) -> bytes: ...
 def meshopt_encode_octahedral(
     vectors: npt.NDArray[np.float32], bits: int
+) -> npt.NDArray[np.uint8]: ...
+def meshopt_encode_quaternions(
+    quaternions: npt.NDArray[np.float32], bits: int
+) -> npt.NDArray[np.uint8]: ...
+def meshopt_encode_exponential(
+    values: npt.NDArray[np.float32], bits: int, mode: str
 ) -> npt.NDArray[np.uint8]: ...
 def meshopt_reorder(
     faces: npt.NDArray[np.uint32], vertex_count: int

@@ -34,6 +34,112 @@ pub fn encode_octahedral(vectors: &[[f32; 4]], bits: u32) -> Result<Vec<u8>, Mes
     })
 }
 
+/// Unit quaternions `(x, y, z, w)` as the `QUATERNION` filter's records (4 shorts,
+/// little-endian, 8 bytes a row): the three smallest components times sqrt(2) as signed
+/// `bits`-bit integers (4 to 16) in cyclic order after the largest, whose index is in the
+/// fourth short's low two bits beside the scale `2^(bits-1) - 1`; the sign is dropped
+/// (q and -q are one rotation). The decoder (`meshopt_decodeFilterQuat`) reconstructs the
+/// largest component as `sqrt(1 - sum of the others' squares)`, so the rows should be unit
+/// quaternions.
+pub fn encode_quaternions(quaternions: &[[f32; 4]], bits: u32) -> Result<Vec<u8>, MeshError> {
+    if !(4..=16).contains(&bits) {
+        return Err(MeshError::Parameter(format!(
+            "quaternion bits must be from 4 to 16, got {bits}"
+        )));
+    }
+    if let Some(i) = quaternions
+        .iter()
+        .position(|q| !q.iter().all(|c| c.is_finite()))
+    {
+        return Err(MeshError::Parameter(format!(
+            "quaternion {i} is not finite"
+        )));
+    }
+    Ok(meshopt::encode_filter_quat(quaternions, bits as i32)
+        .into_iter()
+        .flat_map(|row| row.into_iter().flat_map(i16::to_le_bytes))
+        .collect())
+}
+
+/// How the `EXPONENTIAL` filter's encoder chooses each value's exponent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExponentMode {
+    /// Each value its own exponent (the least error).
+    Separate,
+    /// One exponent per row, the largest its components need.
+    SharedVector,
+    /// One exponent per component over all rows (the most compressible).
+    SharedComponent,
+}
+
+impl ExponentMode {
+    /// The mode called `name` (`"separate"`, `"vector"`, `"component"`).
+    pub fn from_name(name: &str) -> Result<ExponentMode, MeshError> {
+        match name {
+            "separate" => Ok(ExponentMode::Separate),
+            "vector" => Ok(ExponentMode::SharedVector),
+            "component" => Ok(ExponentMode::SharedComponent),
+            other => Err(MeshError::Parameter(format!(
+                "unknown exponent mode {other:?} (separate, vector or component)"
+            ))),
+        }
+    }
+}
+
+/// Rows of `components` float32 values (1 to 64, row-major in `values`) as the
+/// `EXPONENTIAL` filter's words (4 bytes a value, little-endian): each an 8-bit signed
+/// exponent `E` over a `bits`-bit (1 to 24) signed mantissa `M`, decoded to `M * 2^E`, with
+/// the exponents shared as `mode` says.
+pub fn encode_exponential(
+    values: &[f32],
+    components: usize,
+    bits: u32,
+    mode: ExponentMode,
+) -> Result<Vec<u8>, MeshError> {
+    if !(1..=24).contains(&bits) {
+        return Err(MeshError::Parameter(format!(
+            "exponential bits must be from 1 to 24, got {bits}"
+        )));
+    }
+    if !(1..=64).contains(&components) || !values.len().is_multiple_of(components) {
+        return Err(MeshError::Parameter(format!(
+            "{} values are not rows of {components} components (1 to 64)",
+            values.len()
+        )));
+    }
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(MeshError::Parameter(format!(
+            "value {i} (row {}) is not finite",
+            i / components
+        )));
+    }
+    let count = values.len() / components;
+    let mut words = vec![0u32; values.len()];
+    let mode = match mode {
+        ExponentMode::Separate => meshopt::ffi::meshopt_EncodeExpMode_meshopt_EncodeExpSeparate,
+        ExponentMode::SharedVector => {
+            meshopt::ffi::meshopt_EncodeExpMode_meshopt_EncodeExpSharedVector
+        }
+        ExponentMode::SharedComponent => {
+            meshopt::ffi::meshopt_EncodeExpMode_meshopt_EncodeExpSharedComponent
+        }
+    };
+    // SAFETY: `words` holds `count` rows of `components` u32 (the stride, a multiple of 4
+    // of at most 256 bytes), `values` as many finite floats, and `bits` is in 1..=24: the
+    // encoder's preconditions (its debug assertions).
+    unsafe {
+        meshopt::ffi::meshopt_encodeFilterExp(
+            words.as_mut_ptr().cast(),
+            count,
+            components * 4,
+            bits as i32,
+            values.as_ptr(),
+            mode,
+        );
+    }
+    Ok(words.into_iter().flat_map(u32::to_le_bytes).collect())
+}
+
 /// A filter undone on the records after the vertex codec (the extension object's
 /// `filter`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -253,5 +359,46 @@ mod tests {
         assert!(decode_filter(&mut rows, 8, Filter::Octahedral).is_err()); // not whole rows
         assert!(decode_filter(&mut rows, 12, Filter::Octahedral).is_err());
         assert!(decode_filter(&mut rows, 12, Filter::Exponential).is_ok());
+    }
+
+    #[test]
+    fn animation_filters_round_trip() {
+        let quaternions: Vec<[f32; 4]> = (0..200)
+            .map(|i| {
+                let t = i as f32 * 0.173;
+                let q = [t.sin(), (2.0 * t).cos(), (0.5 * t).sin(), t.cos() - 0.3];
+                let n = q.iter().map(|c| c * c).sum::<f32>().sqrt();
+                q.map(|c| c / n)
+            })
+            .collect();
+        let bytes = encode_quaternions(&quaternions, 12).unwrap();
+        let mut rows: Vec<[i16; 4]> = bytes
+            .chunks_exact(8)
+            .map(|r| [0, 1, 2, 3].map(|k| i16::from_le_bytes([r[2 * k], r[2 * k + 1]])))
+            .collect();
+        meshopt::decode_filter_quat(&mut rows);
+        for (q, r) in quaternions.iter().zip(&rows) {
+            let d = r.map(|c| f32::from(c) / 32767.0);
+            let norm = d.iter().map(|c| c * c).sum::<f32>().sqrt();
+            let dot: f32 = (0..4).map(|k| q[k] * d[k]).sum::<f32>() / norm;
+            // 12 bits: each component within half a step (1 / (2047 sqrt 2)) of its value,
+            // the angle between them within 2e-3 radians (about 0.1 degrees).
+            let angle = 2.0 * dot.abs().min(1.0).acos();
+            assert!(angle < 2e-3, "{q:?} -> {d:?}: {angle}");
+        }
+        assert!(encode_quaternions(&quaternions, 3).is_err());
+        let values: Vec<f32> = (0..300).map(|i| (i as f32 * 0.37).sin() * 40.0).collect();
+        for mode in ["separate", "vector", "component"] {
+            let mode = ExponentMode::from_name(mode).unwrap();
+            let words = encode_exponential(&values, 3, 16, mode).unwrap();
+            let mut decoded = Decoded::from_bytes(&words).unwrap();
+            decode_filter(&mut decoded, 12, Filter::Exponential).unwrap();
+            for (v, b) in values.iter().zip(decoded.as_bytes().chunks_exact(4)) {
+                let d = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                assert!((v - d).abs() <= 40.0 / 16384.0, "{v} -> {d}");
+            }
+        }
+        assert!(encode_exponential(&values, 7, 16, ExponentMode::Separate).is_err());
+        assert!(encode_exponential(&[f32::NAN], 1, 16, ExponentMode::Separate).is_err());
     }
 }

@@ -6,7 +6,7 @@
 //! `simplify.rs` (edge-collapse simplification), `vertex_codec.rs` (the vertex codec),
 //! `index_codec.rs` (the index and index sequence codecs, and the triangle-list check),
 //! `reorder.rs` (the vertex cache and fetch order the codecs compress best), `filter.rs`
-//! (the octahedral encoder and the decoders' filters), `decoded.rs` (the aligned buffer the
+//! (the octahedral, quaternion and exponential encoders and the decoders' filters), `decoded.rs` (the aligned buffer the
 //! decoders write, and their errors) and `buffer_view.rs` (one `bufferView` decoded as its
 //! extension object declares).
 //!
@@ -67,7 +67,9 @@ mod tests;
 
 pub use buffer_view::{Mode, decode_buffer_view};
 pub use decoded::Decoded;
-pub use filter::{Filter, decode_filter, encode_octahedral};
+pub use filter::{
+    ExponentMode, Filter, decode_filter, encode_exponential, encode_octahedral, encode_quaternions,
+};
 pub use index_codec::{decode_index_sequence, decode_triangles, encode_triangles};
 pub use reorder::reorder_for_codecs;
 pub use simplify::{Attributes, MAX_ATTRIBUTES, Request, Simplified, simplify};

@@ -100,3 +100,51 @@ pub(super) fn meshopt_decode<'py>(
     })?;
     Ok(PyBytes::new(py, decoded.as_bytes()))
 }
+
+/// Unit quaternions `(n, 4)` as the `QUATERNION` filter's records at `bits` bits (4 to
+/// 16): `(n, 8)` bytes (four little-endian shorts a row).
+#[pyfunction]
+pub(super) fn meshopt_encode_quaternions<'py>(
+    py: Python<'py>,
+    quaternions: PyReadonlyArray2<'py, f32>,
+    bits: u32,
+) -> PyResult<Bound<'py, PyArray2<u8>>> {
+    if quaternions.shape()[1] != 4 || !quaternions.is_c_contiguous() {
+        return Err(ShapeError::new_err(
+            "quaternions must be a C-contiguous (n, 4) float32 array",
+        ));
+    }
+    let flat = quaternions
+        .as_slice()
+        .map_err(|e| ShapeError::new_err(format!("quaternions: {e}")))?;
+    let (rows_in, _) = flat.as_chunks::<4>();
+    let n = rows_in.len();
+    let encoded = run_detached(py, || meshopt::encode_quaternions(rows_in, bits))?;
+    encoded.into_pyarray(py).reshape([n, 8])
+}
+
+/// Rows `(n, c)` of float32 values (c from 1 to 64) as the `EXPONENTIAL` filter's words at
+/// `bits` mantissa bits (1 to 24), the exponents shared as `mode` says (`"separate"`,
+/// `"vector"`: one per row, `"component"`: one per column): `(n, 4 c)` bytes.
+#[pyfunction]
+pub(super) fn meshopt_encode_exponential<'py>(
+    py: Python<'py>,
+    values: PyReadonlyArray2<'py, f32>,
+    bits: u32,
+    mode: &str,
+) -> PyResult<Bound<'py, PyArray2<u8>>> {
+    if !values.is_c_contiguous() {
+        return Err(ShapeError::new_err(
+            "values must be a C-contiguous float32 array",
+        ));
+    }
+    let (n, components) = (values.shape()[0], values.shape()[1]);
+    let flat = values
+        .as_slice()
+        .map_err(|e| ShapeError::new_err(format!("values: {e}")))?;
+    let mode = meshopt::ExponentMode::from_name(mode)?;
+    let encoded = run_detached(py, || {
+        meshopt::encode_exponential(flat, components, bits, mode)
+    })?;
+    encoded.into_pyarray(py).reshape([n, 4 * components])
+}

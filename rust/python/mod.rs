@@ -58,6 +58,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(codecs::meshopt_encode_vertices, m)?)?;
     m.add_function(wrap_pyfunction!(codecs::meshopt_encode_triangles, m)?)?;
     m.add_function(wrap_pyfunction!(codecs::meshopt_encode_octahedral, m)?)?;
+    m.add_function(wrap_pyfunction!(codecs::meshopt_encode_quaternions, m)?)?;
+    m.add_function(wrap_pyfunction!(codecs::meshopt_encode_exponential, m)?)?;
     m.add_function(wrap_pyfunction!(codecs::meshopt_reorder, m)?)?;
     m.add_function(wrap_pyfunction!(codecs::meshopt_decode, m)?)?;
     m.add_function(wrap_pyfunction!(pool::set_num_threads, m)?)?;

@@ -25,6 +25,7 @@ from ..files import asset_bytes, check_not_an_input
 from ..formats.gltf.document import Document, PrimitiveData
 from ..formats.gltf.write import (
     CompressedGeometry,
+    EncodedAnimations,
     document_size,
     image_key,
     rebuild_document,
@@ -33,6 +34,7 @@ from ..formats.gltf.write import (
 from ..formats.open import load_document
 from ..results import Progress, ProgressCallback
 from ..units import length_unit_of
+from .animation import AnimationReport, compress_animations
 from .primitive_search import search_primitive
 from .primitives import (
     Job,
@@ -70,6 +72,7 @@ def compress_scene(
     seed: int = 0,
     certify: bool = True,
     progress: ProgressCallback | None = None,
+    animation_tolerance: float | None = None,
 ) -> SceneResult:
     """Compress every triangle primitive of a scene to one world-space budget and write
     the scene with everything else kept.
@@ -109,6 +112,9 @@ def compress_scene(
     progress
         Called with a :class:`meshbits.Progress` per primitive searched (``str(event)``
         is its line).
+    animation_tolerance
+        How far any node, and what it carries, may move off its animated path (world
+        units, docs/scenes.md). None: the world error (budget, or found); 0: copied.
 
     Returns
     -------
@@ -116,9 +122,11 @@ def compress_scene(
     """
     start = time.perf_counter()
     given = _check_scene_arguments(error, size, relative, codec, normal_tolerance, output)
+    _check_animation_tolerance(animation_tolerance)
     if codec == "auto":
         options = dict(error=error, size=size, relative=relative, seed=seed)
         options.update(normal_tolerance=normal_tolerance, certify=certify, progress=progress)
+        options.update(animation_tolerance=animation_tolerance)
         return _compress_with_either(source, output, options)
     constraint = given.kind
     scene = _plan(source, output, normal_tolerance, codec)
@@ -134,10 +142,16 @@ def compress_scene(
             scene.document, jobs, budget, codec, seed, certify, run_at, scene.world_size
         )
     encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
-    files, size_bytes = _write(
-        scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes
+    tolerance = target_error if animation_tolerance is None else animation_tolerance
+    animations, animation_report = compress_animations(
+        scene.document, tolerance, codec == "meshopt"
     )
     settle_skin_rounding(scene.document, jobs, encodings[0])
+    files, size_bytes, verbatim = _write(
+        scene.document, jobs, encodings[0], codec, source, output, scene.input_bytes, animations
+    )
+    if verbatim:
+        animation_report = AnimationReport.input_kept(animation_report)
     return scene_result(
         constraint,
         budget,
@@ -152,6 +166,7 @@ def compress_scene(
         scene.document.notes,
         given.describe(),
         [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(scene.kept),
+        animation_report,
     )
 
 
@@ -341,17 +356,21 @@ def _run_at(
 
 
 def scene_document(
-    document: Document, jobs: list[Job], encodings: list[PrimitiveEncoding | None], codec: str
+    document: Document,
+    jobs: list[Job],
+    encodings: list[PrimitiveEncoding | None],
+    codec: str,
+    animations: EncodedAnimations | None = None,
 ) -> tuple[dict[str, Any], bytes]:
     """The output document (JSON) and its buffer: the jobs compressed (not kept, with an
     encoding) written by :func:`meshbits.formats.gltf.write.rebuild_document`, each once
-    for every primitive of its ``targets``."""
+    for every primitive of its ``targets``, and the compressed ``animations``."""
     geometries = [
         CompressedGeometry(job.targets, encoding, job.offset)
         for job, encoding in zip(jobs, encodings, strict=True)
         if job.kept is None and encoding is not None
     ]
-    return rebuild_document(document, geometries, codec)
+    return rebuild_document(document, geometries, codec, animations)
 
 
 def _write(
@@ -362,19 +381,20 @@ def _write(
     source: Any,
     output: str | Path | None,
     input_bytes: int,
-) -> tuple[list[str], int]:
+    animations: EncodedAnimations | None,
+) -> tuple[list[str], int, bool]:
     """Write the output (when asked): clusters whose data would grow kept as they were,
     every primitive kept when the file would be larger than a glTF input (and a .glb
     input itself written when even that is larger; a larger file than any other input
-    noted). Returns the files and the size."""
+    noted). Returns the files, the size and whether the input itself was written."""
     _keep_what_grows(document, jobs, encodings)
-    out, data = scene_document(document, jobs, encodings, codec)
+    out, data = scene_document(document, jobs, encodings, codec, animations)
     written: bytes | None = None
     grew = _larger_than_input(source, output, input_bytes, out, data)
     if grew is not None:
         for job in jobs:
             job.kept = job.kept or grew
-        out, data = scene_document(document, jobs, encodings, codec)
+        out, data = scene_document(document, jobs, encodings, codec, animations)
         if _larger_than_input(source, output, input_bytes, out, data) and _verbatim(source, output):
             written = Path(source).read_bytes()
     files, size = write_document(out, data, output, written)
@@ -383,7 +403,13 @@ def _write(
             f"the file is larger than its input ({size:,} > {input_bytes:,} bytes): "
             "a glTF's container, JSON and accessors outweigh what compression saved"
         )
-    return files, size
+    return files, size, written is not None
+
+
+def _check_animation_tolerance(tolerance: float | None) -> None:
+    """Refuse an animation tolerance that is not a finite length >= 0."""
+    if tolerance is not None and not 0 <= tolerance < float("inf"):
+        raise MeshbitsError(f"animation_tolerance must be a finite length >= 0, got {tolerance}")
 
 
 def _check_scene_arguments(

@@ -15,6 +15,7 @@ from ..codecs.primitive import PrimitiveEncoding
 from ..formats.gltf.document import Document, PrimitiveData
 from ..mesh import distinct_positions, draco_drops_note, kept_shape, lost_geometry_note
 from ..results import SAMPLED_ONLY
+from .animation import AnimationReport
 from .primitive_search import job_reference
 from .primitives import Job, Outcome, distinct_vertices
 
@@ -132,6 +133,10 @@ class SceneResult:
     budget_text, budget_unit : str
         The budget as it was given (``"0.01 x S"``, ``"0.002"``, ``"20000 bytes"``), and the
         unit of ``budget``: ``"bits"`` for a size budget, else ``length_unit``.
+    animations : AnimationReport or None
+        What was done to the animations: samplers compressed and copied (by why), bytes
+        before and after, and the stated tolerance of every node's path (world units,
+        measured, apart from the certified geometry bound).
     size_bytes : int
         The written file (GLB; for ``.gltf``, the JSON plus its buffer).
     alternatives : dict or None
@@ -159,6 +164,7 @@ class SceneResult:
     budget_text: str = ""
     budget_unit: str = ""
     alternatives: dict[str, dict[str, Any]] | None = None
+    animations: AnimationReport | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready; a size budget is also given in bytes (``budget_bytes``), as
@@ -303,6 +309,7 @@ def scene_result(
     notes: list[str],
     budget_text: str,
     meshes: list[tuple[np.ndarray, np.ndarray] | None],
+    animations: AnimationReport | None = None,
 ) -> SceneResult:
     world_error = max(r.world_error for r in reports)
     bounds = [r.world_error_upper for r in reports if r.world_error_upper is not None]
@@ -324,6 +331,7 @@ def scene_result(
             f"({unit})"
         )
     message += _kept_note(reports) + _skipped_note(reports) + "".join(f"; {n}" for n in notes)
+    message += animations.note() if animations is not None else ""
     message += lost_geometry_note(
         min(r.kept_area for r in reports), min(r.kept_extent for r in reports)
     )
@@ -350,6 +358,7 @@ def scene_result(
         notes=tuple(notes),
         budget_text=budget_text,
         budget_unit="bits" if constraint == "size" else unit,
+        animations=animations,
     )
 
 

@@ -31,6 +31,7 @@ from .spec import MESHOPT_EXTENSIONS
 __all__ = [
     "FRAME_DISTANCE",
     "CompressedGeometry",
+    "EncodedAnimations",
     "EncodedGeometry",
     "document_size",
     "frame_centre",
@@ -142,6 +143,32 @@ class CompressedGeometry:
     offset: np.ndarray
 
 
+@dataclass(frozen=True)
+class EncodedAnimations:
+    """Animation samplers' new data to write (:mod:`meshbits.scene.animation` makes it).
+
+    Attributes
+    ----------
+    streams : list of dict
+        One bufferView each: ``raw`` (the bytes a reader gets), ``data`` (meshopt's vertex
+        codec bytes, or None for a plain bufferView), ``stride``, ``count`` and ``filter``.
+    accessors : list of dict
+        glTF accessors whose ``bufferView`` is an index into ``streams``.
+    samplers : dict
+        ``(animation, sampler) -> (input, output)``, indices into ``accessors``; every
+        other sampler is copied as it was.
+    """
+
+    streams: list[dict[str, Any]]
+    accessors: list[dict[str, Any]]
+    samplers: dict[tuple[int, int], tuple[int, int]]
+
+    @property
+    def meshopt(self) -> bool:
+        """Whether a stream is written with ``EXT_meshopt_compression``."""
+        return any(stream["data"] is not None for stream in self.streams)
+
+
 class _Blob:
     """A buffer being written: bytes appended at 4-byte alignment."""
 
@@ -174,15 +201,20 @@ def image_key(document: Document, index: int) -> tuple[str, Any]:
 
 
 def rebuild_document(
-    document: Document, geometries: list[CompressedGeometry], codec: str
+    document: Document,
+    geometries: list[CompressedGeometry],
+    codec: str,
+    animations: EncodedAnimations | None = None,
 ) -> tuple[dict[str, Any], bytes]:
     """The document (JSON) and its binary buffer with the compressed ``geometries``
     (``codec``: ``"draco"`` or ``"meshopt"``): each one's data once, every primitive of its
-    ``targets`` pointing at it, frames folded into the nodes; every other primitive, and
-    everything else, copied (images into the buffer)."""
+    ``targets`` pointing at it, frames folded into the nodes; the samplers of
+    ``animations`` pointed at their new data; every other primitive, and everything else,
+    copied (images into the buffer)."""
     frames = _frames(geometries)
     skins = skin_frames(document, frames)
     rebuilt = _Rebuilt(document, {t for geometry in geometries for t in geometry.targets})
+    rebuilt.add_animations(animations)
     rebuilt.copy_kept_data(skins)
     for geometry in geometries:
         rebuilt.add_geometry(geometry, codec)
@@ -191,10 +223,11 @@ def rebuild_document(
         _apply_frames(out, document, frames)
     out["accessors"] = rebuilt.accessors
     out["bufferViews"] = rebuilt.views
-    _set_extensions(out, codec, bool(geometries))
+    meshopt_animations = animations is not None and animations.meshopt
+    _set_extensions(out, codec, bool(geometries), meshopt_animations)
     data = rebuilt.blob.bytes()
     buffers: list[dict[str, Any]] = [{"byteLength": len(data)}]
-    if codec == "meshopt" and geometries:
+    if (codec == "meshopt" and geometries) or meshopt_animations:
         fallback = rebuilt.fallback.length
         buffers.append(
             {
@@ -220,6 +253,32 @@ class _Rebuilt:
         self.accessors: list[dict[str, Any]] = []
         self.view_map: dict[int, int] = {}
         self.accessor_map: dict[int, int] = {}
+        #: ``(animation, sampler) -> (input, output)`` accessors written anew.
+        self.samplers: dict[tuple[int, int], tuple[int, int]] = {}
+
+    def add_animations(self, animations: EncodedAnimations | None) -> None:
+        """The new animation data: a bufferView per stream (meshopt's, without a target
+        nor a byteStride as animation data takes, or plain), its accessors, and where
+        each replaced sampler's input and output went."""
+        if animations is None:
+            return
+        views = []
+        for stream in animations.streams:
+            if stream["data"] is None:
+                raw = stream["raw"]
+                self.views.append(
+                    {"buffer": 0, "byteOffset": self.blob.add(raw), "byteLength": len(raw)}
+                )
+            else:
+                view = self._meshopt_view({**stream, "mode": "ATTRIBUTES"})
+                view.pop("target")
+                view.pop("byteStride")
+                self.views.append(view)
+            views.append(len(self.views) - 1)
+        first = len(self.accessors)
+        for spec in animations.accessors:
+            self.accessors.append({**spec, "bufferView": views[spec["bufferView"]]})
+        self.samplers = {key: (first + i, first + o) for key, (i, o) in animations.samplers.items()}
 
     def copy_view(self, old: int) -> int:
         """The input's bufferView ``old``, its bytes copied into the buffer (once)."""
@@ -269,8 +328,11 @@ class _Rebuilt:
                 skin["inverseBindMatrices"] = len(self.accessors) - 1
             elif skin.get("inverseBindMatrices") is not None:
                 skin["inverseBindMatrices"] = self.copy_accessor(skin["inverseBindMatrices"])
-        for animation in self.out.get("animations", []):
-            for sampler in animation.get("samplers", []):
+        for a, animation in enumerate(self.out.get("animations", [])):
+            for k, sampler in enumerate(animation.get("samplers", [])):
+                if (a, k) in self.samplers:
+                    sampler["input"], sampler["output"] = self.samplers[(a, k)]
+                    continue
                 sampler["input"] = self.copy_accessor(sampler["input"])
                 sampler["output"] = self.copy_accessor(sampler["output"])
         for node in self.out.get("nodes", []):
@@ -405,11 +467,13 @@ def _frames(geometries: list[CompressedGeometry]) -> dict[int, Frame]:
     return frames
 
 
-def _set_extensions(out: dict[str, Any], codec: str, compressed: bool) -> None:
+def _set_extensions(
+    out: dict[str, Any], codec: str, compressed: bool, meshopt_animations: bool = False
+) -> None:
     """The rebuilt document's extensions used and required: Draco's kept while a copied
     primitive still uses it, meshopt's input extensions dropped (its bufferViews were
-    decoded on reading and are copied plain), the codec's own added when something was
-    compressed."""
+    decoded on reading and are copied plain), the codec's own added when a geometry was
+    compressed, and ``EXT_meshopt_compression`` when animation data was."""
     extensions_used = set(out.get("extensionsUsed", []))
     extensions_required = set(out.get("extensionsRequired", []))
     still_draco = any(
@@ -427,6 +491,8 @@ def _set_extensions(out: dict[str, Any], codec: str, compressed: bool) -> None:
         new.add("KHR_mesh_quantization")
     if not compressed:
         new = set()
+    if meshopt_animations:
+        new.add("EXT_meshopt_compression")
     out["extensionsUsed"] = sorted(extensions_used | new)
     out["extensionsRequired"] = sorted(extensions_required | new)
 
