@@ -27,7 +27,7 @@ oracle's, the excess, the passes, whether Open3D confirms "met", and Draco on th
 mesh at 11 and 14 bits; then the summary against the targets, and one figure per mesh
 (bytes against error, log-log) in benches/out/frontier/.
 
-    python benches/frontier.py [--meshes bunny horse ...] [--fresh] [--dragon]
+    python benches/frontier.py [--meshes bunny horse ...] [--fresh] [--dragon] [--oracle-only]
 
 The oracle grids are cached in benches/out/frontier/*.json (``--fresh`` rebuilds them).
 """
@@ -57,7 +57,27 @@ from meshbits.quantize import cube_grid
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benches" / "out" / "frontier"
 
-MESHES = ["bunny", "horse", "hand", "fandisk", "armadillo", "nefertiti"]
+#: The six of the first runs, then (issue 33) a dense scan (the Stanford dragon at its
+#: second resolution, 202,520 faces: above BASE_FACES, so the large-mesh search), a
+#: scanned bust and coarse scans and models (the bunny and the dragon decimated by
+#: Stanford, spot, the cow, the teapot, Suzanne): 15 meshes of shared/meshes.
+MESHES = [
+    "bunny",
+    "horse",
+    "hand",
+    "fandisk",
+    "armadillo",
+    "nefertiti",
+    "dragon_res2",
+    "max-planck",
+    "bunny_res3",
+    "bunny_res4",
+    "dragon_res4",
+    "spot",
+    "cow",
+    "teapot",
+    "suzanne",
+]
 ERROR_BUDGETS = [0.005, 0.002, 0.001, 0.0005]
 SIZE_BUDGETS_KB = [4, 16, 64]
 BITS = range(6, 21)

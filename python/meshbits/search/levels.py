@@ -125,15 +125,16 @@ class Level:
             return self.target_error
         return float(self.target_vertices or self.vertex_count)
 
-    def interactions(self, ratio: float) -> list[float]:
-        """:func:`interaction` of each measurement of the level, its tessellation error
-        taken as ``ratio`` times its quick estimate."""
+    def interactions(self, ratio: float, bits: int | None = None) -> list[float]:
+        """:func:`interaction` of each measurement of the level (at ``bits`` only, when
+        given), its tessellation error taken as ``ratio`` times its quick estimate."""
         if self.quick is None and self.source != "original":
             return []
         t = 0.0 if self.source == "original" else ratio * float(self.quick or 0.0)
         return [
-            interaction(error, t, quantization_error(bits, self.grid_size))
-            for bits, error in self.errors.items()
+            interaction(error, t, quantization_error(measured_bits, self.grid_size))
+            for measured_bits, error in self.errors.items()
+            if bits is None or measured_bits == bits
         ]
 
     def ratio(self) -> float | None:
