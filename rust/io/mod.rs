@@ -168,3 +168,105 @@ impl FaceCounts {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read_bytes(data: &[u8], format: Format) -> Result<MeshRead, ReadError> {
+        let mapped = Mapped::from_bytes(data.to_vec());
+        match format {
+            Format::Ply => ply::read(&mapped),
+            Format::Stl => stl::read(&mapped),
+            Format::Obj => obj::read(&mapped),
+        }
+    }
+
+    const HEAD: &str = "ply\nformat binary_big_endian 1.0\nelement vertex 4\n\
+        property double y\nproperty float x\nproperty double z\nelement face 2\n\
+        property list ushort uint vertex_indices\nend_header\n";
+
+    fn quad_and_triangle() -> Vec<u8> {
+        let mut data = HEAD.as_bytes().to_vec();
+        for (x, y, z) in [
+            (0.0f32, 0.0, 0.0),
+            (1.0, 0.0, 0.0),
+            (1.0, 1.0, 0.0),
+            (0.0, 1.0, 0.5),
+        ] {
+            data.extend(f64::to_be_bytes(y));
+            data.extend(f32::to_be_bytes(x));
+            data.extend(f64::to_be_bytes(z));
+        }
+        for face in [&[0u32, 1, 2, 3][..], &[0, 2, 3]] {
+            data.extend((face.len() as u16).to_be_bytes());
+            for i in face {
+                data.extend(i.to_be_bytes());
+            }
+        }
+        data
+    }
+
+    #[test]
+    fn a_big_endian_ply_of_mixed_polygons_is_read_and_counted() {
+        let read = read_bytes(&quad_and_triangle(), Format::Ply).unwrap();
+        assert_eq!(read.vertices[3], [0.0, 1.0, 0.5]);
+        assert_eq!(read.faces, vec![[0, 1, 2], [0, 2, 3], [0, 2, 3]]);
+        assert_eq!((read.polygons, read.polygon_triangles), (1, 2));
+    }
+
+    #[test]
+    fn truncated_or_out_of_range_files_fall_back() {
+        let data = quad_and_triangle();
+        for cut in [data.len() - 1, HEAD.len() + 10, 20] {
+            assert!(matches!(
+                read_bytes(&data[..cut], Format::Ply),
+                Err(ReadError::Fallback(_))
+            ));
+        }
+        let mut bad = data.clone();
+        let last = bad.len() - 4;
+        bad[last..].copy_from_slice(&9u32.to_be_bytes());
+        assert!(matches!(
+            read_bytes(&bad, Format::Ply),
+            Err(ReadError::Fallback(_))
+        ));
+    }
+
+    #[test]
+    fn obj_negative_indices_and_corner_forms() {
+        let text =
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf -4/1 -3/2 -2/3 -1/1\nl 1 2\nf 1//1 2//1 4//1\n";
+        let read = read_bytes(text, Format::Obj).unwrap();
+        assert_eq!(read.faces, vec![[0, 1, 2], [0, 2, 3], [0, 1, 3]]);
+        assert_eq!((read.polygons, read.skipped_elements), (1, 1));
+        assert!(matches!(
+            read_bytes(b"v 0 0 0\nf 1 2 3\n", Format::Obj),
+            Err(ReadError::Fallback(_))
+        ));
+    }
+
+    #[test]
+    fn binary_and_ascii_stl_read_as_soups() {
+        let mut data = vec![0u8; 80];
+        data.extend(1u32.to_le_bytes());
+        for value in [
+            0.0f32, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0,
+        ] {
+            data.extend(value.to_le_bytes());
+        }
+        data.extend([0, 0]);
+        let read = read_bytes(&data, Format::Stl).unwrap();
+        assert_eq!(
+            read.vertices,
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+        );
+        let text = b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n\
+            vertex 0 1 0\nendloop\nendfacet\nendsolid t\n";
+        let ascii = read_bytes(text, Format::Stl).unwrap();
+        assert_eq!(
+            (ascii.vertices, ascii.faces),
+            (read.vertices, vec![[0, 1, 2]])
+        );
+    }
+}

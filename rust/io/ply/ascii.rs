@@ -57,8 +57,8 @@ pub(super) fn read_ascii(
     let (vertices, faces, counts): ChunkRows = parse_chunks(mapped, &chunks, |chunk, bytes| {
         let mut out: ChunkRows = (Vec::new(), Vec::new(), FaceCounts::default());
         let mut corners = Vec::new();
-        let mut row = first_rows[chunk];
-        for line in lines(bytes).filter(|l| !is_blank(l)) {
+        let rows = lines(bytes).filter(|l| !is_blank(l));
+        for (row, line) in (first_rows[chunk]..).zip(rows) {
             if (vertex_rows.0..vertex_rows.1).contains(&row) {
                 out.0.push(vertex_row(line, &elements[vi], &coords)?);
             } else if (face_rows.0..face_rows.1).contains(&row) {
@@ -67,7 +67,6 @@ pub(super) fn read_ascii(
                     return fallback("a face of fewer than 3 corners or an index out of range");
                 }
             }
-            row += 1;
         }
         Ok(out)
     })?;

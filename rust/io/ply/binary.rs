@@ -79,12 +79,11 @@ pub(super) fn read_binary(
     let vertices = read_vertices(mapped, vertex_start, vertex_row, vertex_count, &coords, big);
     let face = &elements[fi];
     let lists = face.properties.iter().filter(|p| p.list.is_some()).count();
-    if let (Some((face_start, stride)), 1) = (face_fixed, lists) {
-        if let Some((faces, counts)) =
+    if let (Some((face_start, stride)), 1) = (face_fixed, lists)
+        && let Some((faces, counts)) =
             fixed_faces(mapped, face, index, face_start, stride, vertex_count, big)?
-        {
-            return Ok(counts.into_read(vertices, faces));
-        }
+    {
+        return Ok(counts.into_read(vertices, faces));
     }
     let face_start = walk_start(data, elements, start, fi, big)?;
     let (blocks, triangles) = walk_faces(mapped, face, index, face_start, big)?;
