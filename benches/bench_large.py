@@ -4,7 +4,7 @@ Writes bumpy icospheres (``refs.bumpy_icosphere``) as binary little-endian PLY f
 (float32 x, y, z; uchar count + int indices: 12 bytes a vertex, 13 a face) of 1.3M, 5.2M
 and 20.9M faces into a scratch folder (``--folder``, default ``/tmp/meshbits-large``;
 never committed), then times, each in a fresh process whose peak resident memory the
-kernel reports for it (``os.wait4``'s ``ru_maxrss``):
+kernel reports for it (``ru_maxrss``, through ``/usr/bin/time``):
 
 * reading the file's bytes (``readinto`` a buffer of the file's size; page cache warm);
 * meshbits's reader (``meshbits.formats.read_mesh``: the Rust reader, float64 vertices
@@ -32,6 +32,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -61,6 +62,7 @@ if kind == "bytes":
     start = time.perf_counter()
     with open(path, "rb", buffering=0) as f:
         f.readinto(buffer)
+    note = "into a buffer of the file's size, zeroed before (counted before)"
 elif kind == "meshbits":
     before = resident()
     start = time.perf_counter()
@@ -133,15 +135,18 @@ def prepare(folder: Path, subdivisions: int, refs) -> tuple[Path, int, int]:
 
 
 def run(argv: list[str]) -> tuple[float, int, str]:
-    """Runs ``argv``; returns its wall time, its peak resident bytes and its stdout."""
-    start = time.perf_counter()
-    child = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(child.pid, 0)
-    wall = time.perf_counter() - start
-    out, err = child.stdout.read(), child.stderr.read()
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise RuntimeError(f"{' '.join(argv[:5])} failed: {err.decode()[-800:]}")
-    return wall, usage.ru_maxrss * 1024, out.decode()
+    """Runs ``argv`` under ``/usr/bin/time``; returns its wall time, its peak resident
+    bytes and its stdout. (``wait4`` on a child of this process would report at least
+    this process's own peak: Linux carries the high-water mark across fork and exec.)"""
+    with tempfile.NamedTemporaryFile("r", suffix=".txt") as peak_file:
+        timed = ["/usr/bin/time", "-f", "%M", "-o", peak_file.name, *argv]
+        start = time.perf_counter()
+        done = subprocess.run(timed, capture_output=True, check=False)
+        wall = time.perf_counter() - start
+        if done.returncode != 0:
+            raise RuntimeError(f"{' '.join(argv[:5])} failed: {done.stderr.decode()[-800:]}")
+        peak = int(peak_file.read().split()[-1]) * 1024
+    return wall, peak, done.stdout.decode()
 
 
 def row(name: str, seconds: float, peak: int, before: int | None, arrays: int, note: str) -> None:

@@ -207,31 +207,36 @@ fn fixed_faces(
     };
     let mut faces: Vec<[u32; 3]> = Vec::with_capacity(total);
     let rows_per_chunk = (CHUNK_BYTES / stride.max(1)).max(1);
-    let items = start + list_at + length.size();
     let outcome: Result<(), Outcome> = faces.spare_capacity_mut()[..total]
         .par_chunks_mut(rows_per_chunk * per_row)
         .enumerate()
         .try_for_each(|(chunk, slots)| {
             let first_row = chunk * rows_per_chunk;
-            let mut corner = [0u32; MAX_CORNERS];
-            for r in 0..slots.len() / per_row {
-                let row_at = start + (first_row + r) * stride;
-                if int_at(data, row_at + list_at, length, big) != corners as i64 {
-                    return Err(Outcome::Mismatch);
-                }
-                let at = items + (first_row + r) * stride;
-                for (j, c) in corner[..corners].iter_mut().enumerate() {
-                    let i = int_at(data, at + j * item.size(), item, big);
-                    if i < 0 || i as usize >= vertex_count {
-                        return Err(Outcome::BadIndex);
+            let from = start + first_row * stride;
+            if corners == 3
+                && let Some(rows) = triangle_rows(length, item)
+            {
+                rows(data, from, stride, list_at, slots, vertex_count, big)?;
+            } else {
+                let mut corner = [0u32; MAX_CORNERS];
+                for r in 0..slots.len() / per_row {
+                    let row_at = from + r * stride;
+                    if int_at(data, row_at + list_at, length, big) != corners as i64 {
+                        return Err(Outcome::Mismatch);
                     }
-                    *c = i as u32;
-                }
-                for k in 0..per_row {
-                    slots[r * per_row + k].write([corner[0], corner[k + 1], corner[k + 2]]);
+                    let at = row_at + list_at + length.size();
+                    for (j, c) in corner[..corners].iter_mut().enumerate() {
+                        let i = int_at(data, at + j * item.size(), item, big);
+                        if i < 0 || i as usize >= vertex_count {
+                            return Err(Outcome::BadIndex);
+                        }
+                        *c = i as u32;
+                    }
+                    for k in 0..per_row {
+                        slots[r * per_row + k].write([corner[0], corner[k + 1], corner[k + 2]]);
+                    }
                 }
             }
-            let from = start + first_row * stride;
             mapped.release(from, from + (slots.len() / per_row) * stride);
             Ok(())
         });
@@ -250,6 +255,84 @@ fn fixed_faces(
         Err(Outcome::Mismatch) => Ok(None),
         Err(Outcome::BadIndex) => fallback("a face index out of range"),
     }
+}
+
+/// An integer type of a list length or an index, read at compile-time width.
+trait Scalar {
+    const SIZE: usize;
+    fn get(bytes: &[u8], big: bool) -> i64;
+}
+
+macro_rules! scalar {
+    ($($t:ty),*) => {$(
+        impl Scalar for $t {
+            const SIZE: usize = size_of::<$t>();
+            #[inline(always)]
+            fn get(bytes: &[u8], big: bool) -> i64 {
+                let mut b = [0u8; size_of::<$t>()];
+                b.copy_from_slice(&bytes[..size_of::<$t>()]);
+                i64::from(if big { <$t>::from_be_bytes(b) } else { <$t>::from_le_bytes(b) })
+            }
+        }
+    )*};
+}
+scalar!(u8, u16, i32, u32);
+
+/// Parses a chunk of triangle rows into `slots`: the arguments of [`rows_of`].
+type TriangleRows = fn(
+    &[u8],
+    usize,
+    usize,
+    usize,
+    &mut [MaybeUninit<[u32; 3]>],
+    usize,
+    bool,
+) -> Result<(), Outcome>;
+
+/// The triangle-row parser for list lengths of type `length` and indices of type `item`
+/// (the common types, compiled for each), or `None` for the generic path.
+fn triangle_rows(length: Kind, item: Kind) -> Option<TriangleRows> {
+    Some(match (length, item) {
+        (Kind::U8, Kind::I32) => rows_of::<u8, i32>,
+        (Kind::U8, Kind::U32) => rows_of::<u8, u32>,
+        (Kind::U16, Kind::I32) => rows_of::<u16, i32>,
+        (Kind::U16, Kind::U32) => rows_of::<u16, u32>,
+        (Kind::I32, Kind::I32) => rows_of::<i32, i32>,
+        (Kind::I32, Kind::U32) => rows_of::<i32, u32>,
+        (Kind::U32, Kind::I32) => rows_of::<u32, i32>,
+        (Kind::U32, Kind::U32) => rows_of::<u32, u32>,
+        _ => return None,
+    })
+}
+
+/// Rows of 3 corners from `first`, `stride` bytes apart, the list length at `list_at` in
+/// a row, into `slots`: each length checked to be 3 and each index to be in range.
+fn rows_of<L: Scalar, I: Scalar>(
+    data: &[u8],
+    first: usize,
+    stride: usize,
+    list_at: usize,
+    slots: &mut [MaybeUninit<[u32; 3]>],
+    vertex_count: usize,
+    big: bool,
+) -> Result<(), Outcome> {
+    let at = list_at + L::SIZE;
+    let count = vertex_count as u64;
+    let rows = data[first..first + slots.len() * stride].chunks_exact(stride);
+    for (row, slot) in rows.zip(slots.iter_mut()) {
+        if L::get(&row[list_at..], big) != 3 {
+            return Err(Outcome::Mismatch);
+        }
+        let a = I::get(&row[at..], big);
+        let b = I::get(&row[at + I::SIZE..], big);
+        let c = I::get(&row[at + 2 * I::SIZE..], big);
+        // A negative index becomes a u64 above any vertex count.
+        if (a as u64) >= count || (b as u64) >= count || (c as u64) >= count {
+            return Err(Outcome::BadIndex);
+        }
+        slot.write([a as u32, b as u32, c as u32]);
+    }
+    Ok(())
 }
 
 /// Why a chunk of faces stopped.
