@@ -36,15 +36,14 @@ def trimesh_arrays(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def corners(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """The triangles as corner positions, each rotated to start at its smallest corner
-    (same orientation), rows sorted: equal for the same triangles in any order and any
+    """The triangles as corner positions, each as its smallest rotation (same
+    orientation), rows sorted: equal for the same triangles in any order and any
     vertex numbering or fan start."""
     tri = vertices[np.asarray(faces, dtype=np.int64)]
     keys = [tuple(map(tuple, t)) for t in tri]
     rotated = []
     for t in keys:
-        start = min(range(3), key=lambda k: t[k])
-        rotated.append(t[start:] + t[:start])
+        rotated.append(min(t[k:] + t[:k] for k in range(3)))
     return np.array(sorted(rotated)).reshape(-1, 9)
 
 
