@@ -12,6 +12,7 @@ kernel reports for it (``ru_maxrss``, through ``/usr/bin/time``):
 * ``trimesh.load(process=False)``, plyfile (``PlyData.read``, its vertex and face
   arrays), Open3D's ``read_triangle_mesh``;
 * K on ready arrays (``shape_complexity`` of float64/uint32 arrays already in memory);
+* the interpreter's start and meshbits's imports (``import meshbits.cli.main``);
 * ``meshbits k FILE --json`` end to end, the console command in its own process.
 
 Each process's time is its own measurement of the operation alone (imports excluded;
@@ -183,6 +184,8 @@ def bench(path: Path, vertices: int, faces: int, folder: Path, plyfile_path: str
         own = json.loads(out.strip().splitlines()[-1])
         times[kind] = own["seconds"]
         row(name, own["seconds"], peak, own["before"], arrays, own["note"])
+    start_wall, start_peak, _ = run([sys.executable, "-c", "import meshbits.cli.main"])
+    row("interpreter start + meshbits imports", start_wall, start_peak, None, arrays, "")
     wall, peak, out = run([sys.executable, "-m", "meshbits.cli", "k", str(path), "--json"])
     report = json.loads(out)
     times["cli"] = wall
