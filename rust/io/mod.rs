@@ -234,6 +234,19 @@ mod tests {
     }
 
     #[test]
+    fn huge_declared_counts_fall_back_without_allocating() {
+        for count in ["9223372036854775807", "18446744073709551615", "4294967295"] {
+            let data = HEAD.replace("element face 2", &format!("element face {count}"));
+            let mut bytes = data.into_bytes();
+            bytes.extend(&quad_and_triangle()[HEAD.len()..]);
+            assert!(matches!(
+                read_bytes(&bytes, Format::Ply),
+                Err(ReadError::Fallback(_))
+            ));
+        }
+    }
+
+    #[test]
     fn obj_negative_indices_and_corner_forms() {
         let text =
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf -4/1 -3/2 -2/3 -1/1\nl 1 2\nf 1//1 2//1 4//1\n";

@@ -61,6 +61,24 @@ pub(super) fn read_binary(
     big: bool,
 ) -> Result<MeshRead, ReadError> {
     let data = mapped.bytes();
+    // Each row takes at least its scalars and its list lengths: a header declaring more
+    // rows than the file can hold is left aside before anything is sized from its counts.
+    let mut least = start;
+    for element in elements {
+        let row: usize = element
+            .properties
+            .iter()
+            .map(|p| p.list.unwrap_or(p.kind).size())
+            .sum();
+        least = element
+            .count
+            .checked_mul(row.max(1))
+            .and_then(|n| least.checked_add(n))
+            .unwrap_or(usize::MAX);
+    }
+    if least > data.len() {
+        return fallback("the header declares more rows than the file holds");
+    }
     let coords = coordinates(&elements[vi])?;
     let index = index_list(&elements[fi])?;
     let vertex_row = elements[vi].fixed_row().unwrap_or(0);
