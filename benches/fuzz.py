@@ -1720,7 +1720,7 @@ def _worker(conn: Any, index: int, log: str) -> None:
                         vertices, faces = meshbits.load_mesh(path)
                     ok = (
                         vertices.dtype == np.float64
-                        and faces.dtype == np.int64
+                        and faces.dtype == np.uint32  # load_mesh: uint32 faces (docs/large.md)
                         and vertices.ndim == 2
                         and vertices.shape[1] == 3
                         and faces.shape[1] == 3

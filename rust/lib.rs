@@ -11,7 +11,7 @@
 //! and tests from Rust alone.
 //!
 //! Grid quantization to B bits and vertex clustering: [`quantize`]. Vertex welding:
-//! [`weld`]. meshoptimizer's simplifier and glTF codecs: [`meshopt`].
+//! [`weld`]. Mesh files read into those arrays: [`io`]. meshoptimizer's simplifier and glTF codecs: [`meshopt`].
 
 pub mod adjacency;
 pub mod alloc;
@@ -20,6 +20,7 @@ pub mod closest;
 pub mod complexity;
 pub mod error;
 pub mod hausdorff;
+pub mod io;
 pub mod meshopt;
 pub mod pool;
 #[cfg(feature = "python")]

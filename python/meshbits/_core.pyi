@@ -1,5 +1,6 @@
 """Typed stubs for the native module ``meshbits._core`` (see ``rust/python/``)."""
 
+import os
 from typing import TypedDict, final
 
 import numpy as np
@@ -131,6 +132,7 @@ __all__ = [
     "meshopt_encode_vertices",
     "meshopt_reorder",
     "quantize",
+    "read_mesh",
     "sample_mesh",
     "set_num_threads",
     "shape_complexity",
@@ -222,6 +224,9 @@ def box_overlap(vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.uint32]
 def faces_as_u32(
     faces: npt.NDArray[np.int64], vertex_count: int
 ) -> npt.NDArray[np.uint32] | None: ...
+def read_mesh(
+    path: str | os.PathLike[str], format: str
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.uint32], dict[str, int]] | str: ...
 def meshopt_encode_vertices(data: npt.NDArray[np.uint8], stride: int) -> bytes: ...
 def meshopt_encode_triangles(faces: npt.NDArray[np.uint32], vertex_count: int) -> bytes: ...
 def meshopt_encode_octahedral(

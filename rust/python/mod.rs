@@ -12,7 +12,7 @@
 //! the conversion from [`MeshError`](crate::MeshError)), `pool.rs` (`run_detached`, the
 //! one fork-safe path into a kernel, and the thread count), `arrays.rs` (numpy arrays in
 //! and out), and one file per area: `complexity.rs`, `tree.rs`, `hausdorff.rs`,
-//! `quantize.rs`, `simplify.rs`, `codecs.rs` (meshopt), `mesh.rs` (welding, face dtypes).
+//! `quantize.rs`, `simplify.rs`, `codecs.rs` (meshopt), `mesh.rs` (welding, face dtypes), `io.rs` (mesh files).
 
 use pyo3::prelude::*;
 
@@ -21,6 +21,7 @@ mod codecs;
 mod complexity;
 mod errors;
 mod hausdorff;
+mod io;
 mod mesh;
 mod pool;
 mod quantize;
@@ -54,6 +55,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(quantize::dequantize, m)?)?;
     m.add_function(wrap_pyfunction!(quantize::cluster, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::faces_as_u32, m)?)?;
+    m.add_function(wrap_pyfunction!(io::read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::weld, m)?)?;
     m.add_function(wrap_pyfunction!(codecs::meshopt_encode_vertices, m)?)?;
     m.add_function(wrap_pyfunction!(codecs::meshopt_encode_triangles, m)?)?;

@@ -17,7 +17,7 @@ from ..budget import Budget
 from ..complexity import shape_complexity
 from ..errors import MeshbitsError
 from ..files import check_not_an_input, check_writable
-from ..formats import load_mesh
+from ..formats import read_mesh
 from ..results import json_ready
 from ..units import length_unit_of, parse_length, parse_size
 
@@ -228,12 +228,27 @@ def print_table(title: str, rows: Sequence[tuple[str, Any]]) -> None:
 
 
 def complexity_report(path: Path, args: argparse.Namespace) -> dict[str, Any]:
-    """K and its statistics for the mesh at ``path`` (``--estimator``, ``--no-merge``)."""
-    vertices, faces = load_mesh(input_file(path))
+    """K and its statistics for the mesh at ``path`` (``--estimator``, ``--no-merge``):
+    the file read straight into the kernel's arrays (see :func:`read_mesh`), with what
+    reading changed (``reader``; ``polygons`` fan-triangulated into ``polygon_triangles``
+    and ``skipped_elements`` left out, when the Rust reader read it)."""
+    read = read_mesh(input_file(path))
     result = shape_complexity(
-        vertices, faces, estimator=args.estimator, merge_vertices=not args.no_merge
+        read.vertices, read.faces, estimator=args.estimator, merge_vertices=not args.no_merge
     )
-    return {"mesh": str(path), "vertices": len(vertices), "faces": len(faces), **result.to_dict()}
+    counts = {
+        name: getattr(read, name)
+        for name in ("polygons", "polygon_triangles", "skipped_elements")
+        if getattr(read, name) is not None
+    }
+    return {
+        "mesh": str(path),
+        "vertices": len(read.vertices),
+        "faces": len(read.faces),
+        **result.to_dict(),
+        "reader": read.reader,
+        **counts,
+    }
 
 
 def vertices_text(vertices: int, merged: int | None) -> str:

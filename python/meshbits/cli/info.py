@@ -55,6 +55,16 @@ def _run_k(args: argparse.Namespace) -> int:
             ("  degenerate", report["degenerate_edges"]),
             ("merged vertices", report["merged_vertices"]),
             ("degenerate faces (skipped)", report["degenerate_faces"]),
+            *(
+                [("polygons (fan-triangulated)", report["polygons"])]
+                if report.get("polygons")
+                else []
+            ),
+            *(
+                [("lines and points (skipped)", report["skipped_elements"])]
+                if report.get("skipped_elements")
+                else []
+            ),
         ],
     )
     return EXIT_OK

@@ -1,8 +1,9 @@
 """File formats: mesh and scene files in and out, as arrays or glTF documents.
 
 :mod:`.open` is the dispatcher (:func:`load_mesh`, :func:`load_document`,
-:func:`save_mesh`); each format has its own module (:mod:`.ply`, :mod:`.obj` for OBJ and
-OFF, :mod:`.stl`, :mod:`.drc`, :mod:`.gltf`), and :mod:`.sniff` holds what they share
+:func:`read_mesh`, :func:`save_mesh`); each format has its own module (:mod:`.ply`,
+:mod:`.obj` for OBJ and OFF, :mod:`.stl`, :mod:`.drc`, :mod:`.gltf`), :mod:`.native`
+holds the Rust readers of PLY, STL and OBJ, and :mod:`.sniff` holds what they share
 before a parser reads a file. Formats import leaves (errors, files, mesh, _core), never
 the dispatcher, nor the codecs (which import formats: glTF's constants, Draco's decoder).
 """
@@ -10,13 +11,16 @@ the dispatcher, nor the codecs (which import formats: glTF's constants, Draco's 
 from __future__ import annotations
 
 from .gltf import Document, PrimitiveData
-from .open import example_mesh_path, load_document, load_mesh, save_mesh
+from .native import MeshRead
+from .open import example_mesh_path, load_document, load_mesh, read_mesh, save_mesh
 
 __all__ = [
     "Document",
+    "MeshRead",
     "PrimitiveData",
     "example_mesh_path",
     "load_document",
     "load_mesh",
+    "read_mesh",
     "save_mesh",
 ]

@@ -1,6 +1,8 @@
 """The dispatcher: which format reads or writes a file, by its name.
 
-Reading: OBJ, PLY, STL, OFF, GLB/glTF and anything else trimesh reads, also gzip-compressed
+Reading: PLY, STL and OBJ through the Rust readers (:mod:`.native`: memory-mapped,
+parsed in parallel straight into the kernels' arrays), the files they leave aside and
+OFF, GLB/glTF and anything else trimesh reads, also gzip-compressed
 (``.gz``); GLB/glTF compressed with meshopt (``EXT_meshopt_compression``,
 ``KHR_meshopt_compression``) or Draco (``KHR_draco_mesh_compression``) through meshbits's
 own glTF reader, which refuses a primitive it cannot decode. A scene with several
@@ -31,6 +33,7 @@ from .drc import read_drc
 from .gltf.document import Document
 from .gltf.read import check_glb_header, document_from_trimesh, read_gltf
 from .gltf.write import write_mesh
+from .native import NATIVE_FORMATS, MeshRead, read_native
 from .sniff import HeaderCheck, check_mapped, explain, file_type_of, gunzip
 
 __all__ = [
@@ -41,6 +44,7 @@ __all__ = [
     "load_document",
     "load_mesh",
     "parse_mesh_file",
+    "read_mesh",
     "save_mesh",
 ]
 
@@ -103,14 +107,18 @@ def checked_mesh_file(path: Path) -> tuple[Path | io.BytesIO, str, bool]:
 
 
 def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a triangle mesh file; return ``(vertices float64 (n, 3), faces int64 (m, 3))``.
+    """Read a triangle mesh file; return ``(vertices float64 (n, 3), faces uint32 (m, 3))``.
 
-    Before trimesh parses a PLY, OFF, STL or GLB file, the counts its header declares are
-    compared with what the file holds (see :data:`HEADER_CHECKS`): a 200-byte file that
-    declares 10**12 vertices is refused at once, without allocating for them. A ``.gz``
-    file may inflate to at most :data:`~meshbits.formats.sniff.GZIP_MAX_RATIO` times its
-    size (at least :data:`~meshbits.formats.sniff.GZIP_MIN_LIMIT` bytes): beyond that it
-    is refused as a decompression bomb.
+    The faces are ``uint32``, the narrowest dtype every kernel takes without a conversion
+    pass (a mesh of 2**32 vertices or more is refused). PLY, STL and OBJ files are read by
+    the Rust readers (see :func:`read_mesh`); the rest, and any file those leave aside,
+    by the general path: before trimesh parses a PLY, OFF, STL or GLB file, the counts its
+    header declares are compared with what the file holds (see :data:`HEADER_CHECKS`): a
+    200-byte file that declares 10**12 vertices is refused at once, without allocating
+    for them. A ``.gz`` file may inflate to at most
+    :data:`~meshbits.formats.sniff.GZIP_MAX_RATIO` times its size (at least
+    :data:`~meshbits.formats.sniff.GZIP_MIN_LIMIT` bytes): beyond that it is refused as a
+    decompression bomb.
 
     Raises
     ------
@@ -121,10 +129,42 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         triangles, or it holds NaN or infinite coordinates or vertex indices out of range
         (a ``ValueError``). Nothing else, whatever the file holds.
     """
+    read = read_mesh(path)
+    return read.vertices, read.faces
+
+
+def read_mesh(path: str | Path) -> MeshRead:
+    """Read a triangle mesh file as :func:`load_mesh` does, with what reading changed.
+
+    An uncompressed PLY (binary either endian, or ASCII), STL (binary or ASCII) or OBJ is
+    read by the Rust reader of :mod:`.native`: memory-mapped, parsed in parallel into the
+    returned arrays, polygons fan-triangulated and counted. A file it does not read exactly
+    as trimesh would (another layout, or any damage) goes the general path, whose header
+    checks and messages apply: the result is then ``reader="trimesh"``.
+
+    Raises
+    ------
+    FileNotFoundError, MeshFileError
+        As :func:`load_mesh`.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such mesh file: {path}")
+    file_type, compressed = file_type_of(path)
+    if not compressed and file_type in NATIVE_FORMATS:
+        native = read_native(path, file_type)
+        if native is not None:
+            return native
+    vertices, faces = load_general(path)
+    return MeshRead(vertices, faces, "trimesh")
+
+
+def load_general(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The general path of :func:`load_mesh`: the header checks, then trimesh (or
+    meshbits's glTF reader, or DracoPy); faces as ``uint32``."""
     # trimesh is imported on first use: it takes longer to import than meshbits.
     import trimesh
 
-    path = Path(path)
     source, file_type, compressed = checked_mesh_file(path)
     try:
         # Corrupt data makes parsers cast NaN to int, overflow and the like: the file is
@@ -152,10 +192,9 @@ def load_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         # attribute errors...): each is this file's fault, reported as such.
         raise MeshFileError(f"cannot read {path}: {explain(file_type, err)}") from err
     try:
-        as_mesh(vertices, faces)
+        return as_mesh(vertices, faces)
     except MeshbitsError as err:
         raise MeshFileError(f"{path}: {err}") from err
-    return vertices, faces
 
 
 def parse_mesh_file(path: Path, source: Path | io.BytesIO, file_type: str, compressed: bool) -> Any:

@@ -1,7 +1,8 @@
 """PLY: the header check, what a PLY header declares against what the file holds.
 
-trimesh parses PLY files (binary or ASCII) and writes them; what meshbits adds is the
-check before it reads one: the counts of an ASCII header against the lines that follow,
+The Rust reader (:mod:`.native`) reads uncompressed PLY files; trimesh parses those it
+leaves aside (damaged, or gzip-compressed) and writes them. This check runs before
+trimesh reads one: the counts of an ASCII header against the lines that follow,
 the row layout of a binary header (lists as long as in each element's first row, as
 trimesh reads them) against the file's size, and every list as long as the first.
 """
@@ -173,8 +174,7 @@ def _binary_sizes(buffer: Any, size: int, fmt: str, elements: list[_Element], st
             f"the PLY header declares {declared}: {size_text} of binary data (lists as long "
             f"as the first one), but {size - start:,} bytes follow it: "
             + ("truncated or damaged" if offset > size else "damaged")
-            + ", or the polygons have different numbers of corners (a binary PLY must use "
-            "one polygon size to be read)"
+            + " (mixed polygon sizes are read from an uncompressed file only)"
         )
     for element, at, fields in layouts:
         _check_list_lengths(buffer, element, at, fields)
@@ -227,5 +227,5 @@ def _check_list_lengths(
                 raise MeshFileError(
                     f"{element.name} {int(bad[0])} has a list of {int(lengths[bad[0]])} "
                     f"items where {element.name} 0 has {int(lengths[0])}: the binary PLY "
-                    "is damaged, or mixes polygon sizes, which cannot be read"
+                    "is damaged (mixed polygon sizes are read from an uncompressed file only)"
                 )
