@@ -132,15 +132,7 @@ def compress_scene(
     scene = _plan(source, output, normal_tolerance, codec)
     budget = given.resolve(scene.world_size)
     jobs = scene.jobs
-    run_at = _run_at(jobs, codec, seed, certify, scene.margin, scene.unit, progress)
-    if not jobs:
-        outcomes, target_error = [], budget if constraint == "error" else 0.0
-    elif constraint == "error":
-        outcomes, target_error = run_at(budget), budget
-    else:
-        outcomes, target_error = _size_search(
-            scene.document, jobs, budget, codec, seed, certify, run_at, scene.world_size
-        )
+    outcomes, target_error = _search(scene, constraint, budget, codec, seed, certify, progress)
     encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
     tolerance = target_error if animation_tolerance is None else animation_tolerance
     animations, animation_report = compress_animations(
@@ -167,6 +159,28 @@ def compress_scene(
         given.describe(),
         [(job.data.positions, job.data.faces) for job in jobs] + [None] * len(scene.kept),
         animation_report,
+    )
+
+
+def _search(
+    scene: _Planned,
+    constraint: str,
+    budget: float,
+    codec: str,
+    seed: int,
+    certify: bool,
+    progress: ProgressCallback | None,
+) -> tuple[list[Any], float]:
+    """Every primitive's outcome and the world error they were searched at: the budget
+    itself for an error budget, the largest error that fits for a size budget."""
+    jobs = scene.jobs
+    run_at = _run_at(jobs, codec, seed, certify, scene.margin, scene.unit, progress)
+    if not jobs:
+        return [], budget if constraint == "error" else 0.0
+    if constraint == "error":
+        return run_at(budget), budget
+    return _size_search(
+        scene.document, jobs, budget, codec, seed, certify, run_at, scene.world_size
     )
 
 

@@ -1,5 +1,6 @@
 """Writing glTF: the one writer of every glTF meshbits writes.
 
+One concept: a glTF document and its binary, rebuilt and written.
 A scene's document is rebuilt around its compressed primitives
 (:func:`rebuild_document`: Draco or meshopt data, frames folded into the nodes, everything
 else copied), a mesh becomes a document through trimesh's glTF export
