@@ -146,8 +146,16 @@ def read_gltf(path: Path) -> tuple[dict, bytes]:
 read_glb = read_gltf
 
 
-def node_matrix(node: dict) -> np.ndarray:
-    """A node's local transform (float64), from its matrix or its TRS."""
+def node_matrix(node: dict, float32: bool = False) -> np.ndarray:
+    """A node's local transform (float64), from its matrix or its TRS; with ``float32``,
+    each of its numbers first rounded to float32 (as cgltf, gltfpack and most engines
+    read them)."""
+    if float32:
+        node = {
+            key: np.asarray(node[key], dtype=np.float32).astype(np.float64).tolist()
+            for key in ("matrix", "rotation", "scale", "translation")
+            if key in node
+        }
     if "matrix" in node:
         return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
     x, y, z, w = node.get("rotation", [0, 0, 0, 1])
@@ -191,13 +199,14 @@ def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
     return np.stack([np.full(len(i), indices[0]), indices[i + 1], indices[i + 2]], axis=1)
 
 
-def node_world_matrices(doc: dict) -> dict[int, np.ndarray]:
-    """node -> its world matrix (float64), for every node of the default scene."""
+def node_world_matrices(doc: dict, float32: bool = False) -> dict[int, np.ndarray]:
+    """node -> its world matrix (composed in float64), for every node of the default
+    scene; with ``float32``, of nodes whose numbers are read as float32."""
     out: dict[int, np.ndarray] = {}
     stack = [(n, np.eye(4)) for n in doc["scenes"][doc.get("scene", 0)]["nodes"]]
     while stack:
         index, parent = stack.pop()
-        out[index] = parent @ node_matrix(doc["nodes"][index])
+        out[index] = parent @ node_matrix(doc["nodes"][index], float32)
         stack += [(c, out[index]) for c in doc["nodes"][index].get("children", [])]
     return out
 
@@ -241,14 +250,17 @@ def _morphed(doc: dict, blob: bytes, mesh: dict, node: dict, prim: dict, local: 
     return out
 
 
-def gltf_world_mesh(path: Path, skinned: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def gltf_world_mesh(
+    path: Path, skinned: bool = False, float32_transforms: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """Every triangle primitive of a .glb/.gltf at each node showing it, in world
     coordinates composed in float64: one mesh. With ``skinned``, a skinned node's
     primitives are posed by its skin at the rest transforms (the node's own transform is
     then ignored, as glTF says) and the default morph weights are applied: what a viewer
-    shows before any animation plays."""
+    shows before any animation plays. With ``float32_transforms``, every node's numbers
+    are read as float32 first (the composition stays float64)."""
     doc, blob = read_gltf(path)
-    worlds = node_world_matrices(doc)
+    worlds = node_world_matrices(doc, float32_transforms)
     vertices, faces, offset = [], [], 0
     for index, world in worlds.items():
         node = doc["nodes"][index]
@@ -277,9 +289,10 @@ def gltf_world_mesh(path: Path, skinned: bool = False) -> tuple[np.ndarray, np.n
     return np.concatenate(vertices), np.concatenate(faces)
 
 
-def read_output(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def read_output(path: Path, float32_transforms: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """A written file as ``(vertices float64, faces int64)``, by a reader that is not
-    meshbits's: DracoPy, pygltflib with DracoPy / meshopt, or trimesh."""
+    meshbits's: DracoPy, pygltflib with DracoPy / meshopt, or trimesh
+    (``float32_transforms``: :func:`gltf_world_mesh`'s)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".drc":
@@ -289,7 +302,7 @@ def read_output(path: Path) -> tuple[np.ndarray, np.ndarray]:
             np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3),
         )
     if suffix in (".glb", ".gltf"):
-        return gltf_world_mesh(path)
+        return gltf_world_mesh(path, float32_transforms=float32_transforms)
     loaded = trimesh.load(path, process=False, force="mesh")
     return np.asarray(loaded.vertices, dtype=np.float64), np.asarray(loaded.faces, np.int64)
 

@@ -118,6 +118,12 @@ def run_case(
     seconds = time.perf_counter() - start
     decoded = read_output(target)
     true = hausdorff_lower((vertices, faces), decoded, samples=8000)
+    if suffix in (".glb", ".gltf"):
+        # A reader that keeps node transforms in float32 (cgltf, gltfpack, most engines)
+        # must find the same file: meshbits writes no translation float32 would round by
+        # more than a position near the origin.
+        rounded = read_output(target, float32_transforms=True)
+        true = max(true, hausdorff_lower((vertices, faces), rounded, samples=8000))
     return {
         "bound": bound,
         "true": true,
@@ -181,8 +187,11 @@ def test_the_certified_bound_holds_of_the_written_file(
 @pytest.mark.parametrize("output", OUTPUTS[2:6], ids=lambda o: f"{o[0]}-{o[1]}")
 def test_far_from_the_origin_costs_what_it_costs_at_the_origin(tmp_path, bunny, output):
     """A georeferenced offset (UTM-like) to a glTF output: met, certified, and within 1%
-    of the bytes at the origin, or at most the node translation's JSON more (Draco's 2 kB
-    file: 32 bytes, 1.5%; written 420000.0 and -0.0, it took 40)."""
+    of the bytes at the origin, or at most the JSON of a parent node carrying the centre
+    more (Draco's 2 kB file: 32 bytes, 1.5%; written 420000.0 and -0.0, it took 40). The
+    centre is a parent of its own where folding it into the mesh's node would write a
+    translation float32 rounds (meshopt's grid origin added to it: 5400000.0329 read as
+    5400000.0 by gltfpack, 0.03 off)."""
     vertices, faces = bunny
     sizes = []
     for offset in ([0.0, 0.0, 0.0], [4.2e5, 5.4e6, 0.0]):
@@ -191,7 +200,7 @@ def test_far_from_the_origin_costs_what_it_costs_at_the_origin(tmp_path, bunny, 
         case = run_case(folder, vertices + offset, faces, output, error=0.01, size_bytes=None)
         assert case["met"] and case["true"] <= case["bound"]
         sizes.append(case["bytes"])
-    translation = len(',"translation":[420000,5400000,0]')
+    translation = len('{"translation":[420000,5400000,0],"children":[1]},')
     padding = 3 if output[0] == ".glb" else 0
     assert sizes[1] <= max(1.01 * sizes[0], sizes[0] + translation + padding), sizes
 

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from meshbits.cli import main
@@ -820,3 +821,73 @@ def test_an_output_larger_than_its_input_is_said(tmp_path, capsys, suffix):
     said = f"larger than its input ({size:,} > {given:,} bytes)"
     notes = payload.get("notes") or [payload["message"]]
     assert any(said.replace(",", "") in note.replace(",", "") for note in notes), payload
+
+
+@pytest.mark.parametrize("suffix", [".drc", ".ply", ".stl"])
+def test_a_float32_output_that_cannot_hold_the_mesh_is_not_written(tmp_path, capsys, suffix):
+    """The bunny at a UTM-like offset in float64: float32 there is spaced 0.5, wider than
+    the bunny; the search's "closest result" was written (B = 1, V = 4, no likeness of the
+    bunny). Nothing is written now, and the message says why and what can hold it."""
+    from test_certificates import write_ply64
+
+    from meshbits.formats import load_mesh
+
+    vertices, faces = load_mesh(DATA / "bunny_res4.ply")
+    source = write_ply64(tmp_path / "far.ply", vertices + np.array([4.2e5, 5.4e6, 0.0]), faces)
+    output = tmp_path / f"out{suffix}"
+    args = ["compress", str(source), "--error", "0.01", "--relative", "-o", str(output)]
+    assert main([*args, "--json"]) == 1
+    payload = json.loads(capsys.readouterr().out)
+    assert not output.exists()
+    assert payload["output"] is None and payload["file_bytes"] is None
+    assert f"nothing written: {suffix} stores float32 positions" in payload["message"]
+    assert ".glb, .gltf, .obj or .off" in payload["message"]
+    near = tmp_path / f"near-out{suffix}"
+    near_source = write_ply64(tmp_path / "near.ply", vertices, faces)
+    assert (
+        main(["compress", str(near_source), "--error", "0.01", "--relative", "-o", str(near)]) == 0
+    )
+    assert near.exists()
+
+
+def test_a_size_budget_below_the_kept_images_is_unmet_not_bad_input(tmp_path, capsys):
+    """Fox.glb keeps a 150 kB texture whatever its geometry: a 20 kB budget cannot be met
+    by any output. That is a budget not met (exit 1, nothing written), not a refused
+    input (it exited 2)."""
+    output = tmp_path / "fox.glb"
+    args = ["compress", str(DATA / "gltf" / "Fox.glb"), "--size", "20KB", "-o", str(output)]
+    assert main([*args, "--json"]) == 1
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["exit_code"] == 1 and not output.exists()
+    assert "1 image" in payload["error"] and "nothing written" in payload["error"]
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGTERM")
+def test_sigterm_removes_what_was_being_written(tmp_path):
+    """``--codec auto`` writes each codec's scene in a folder beside the output: SIGTERM
+    (a batch system's kill, ``timeout``) left it behind, where Ctrl-C removed it. Both
+    end the same way now: nothing left but the input, exit 143."""
+    import signal
+    import time
+
+    source = tmp_path / "fox.glb"
+    source.write_bytes((DATA / "gltf" / "Fox.glb").read_bytes())
+    output = tmp_path / "out.glb"
+    command = [sys.executable, "-m", "meshbits.cli", "compress", str(source)]
+    process = subprocess.Popen(
+        [*command, "--error", "0.0005", "--relative", "-o", str(output)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and process.poll() is None:
+        if any(path.name.startswith(".meshbits-") for path in tmp_path.iterdir()):
+            break
+        time.sleep(0.02)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=60)
+    if process.returncode == 0:  # pragma: no cover - a very fast machine finished first
+        pytest.skip("the compression finished before the signal")
+    assert process.returncode == 143, stderr.decode()
+    assert b"terminated" in stderr and b"Traceback" not in stderr
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["fox.glb"]

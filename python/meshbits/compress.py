@@ -584,9 +584,11 @@ def _float32_note(
 
 
 def _message(constraint: str, budget: float, met: bool, record: Iteration, passes: int) -> str:
+    upper = record.measured_error_upper
+    certified = "" if upper is None else f" (certified <= {upper:.4g})"
     outcome = (
-        f"B = {record.bits}, V = {record.vertices}: error {record.measured_error:.4g} "
-        f"(mesh units), {record.measured_size_bits // 8} bytes"
+        f"B = {record.bits}, V = {record.vertices}: error {record.measured_error:.4g}"
+        f"{certified} (mesh units), {record.measured_size_bits // 8} bytes"
     )
     if met:
         uncertified = constraint == "error" and record.measured_error_upper is None

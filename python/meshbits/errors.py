@@ -10,7 +10,8 @@ The native kernels raise one subclass per kind of refusal: :class:`ShapeError` (
 shape, dtype or layout), :class:`NonFiniteError` (a NaN or infinite coordinate),
 :class:`IndexOutOfRangeError` (a face index), :class:`EmptyMeshError` (no vertices or no
 faces), :class:`ParameterError` (a parameter out of range) and :class:`OutsideBoxError` (a
-point outside a quantization box).
+point outside a quantization box). :class:`UnreachableBudgetError` is a budget no output
+can meet.
 """
 
 from __future__ import annotations
@@ -34,12 +35,19 @@ __all__ = [
     "OutsideBoxError",
     "ParameterError",
     "ShapeError",
+    "UnreachableBudgetError",
 ]
 
 
 class MeshFileError(MeshbitsError):
     """A file that cannot be read as a triangle mesh: unparsable, truncated, or holding no
     usable triangles (NaN coordinates, indices out of range, no faces)."""
+
+
+class UnreachableBudgetError(MeshbitsError):
+    """A budget no output can meet, known before any is made: a size below the bytes an
+    output keeps whatever its geometry (images, JSON). Nothing is written; the
+    ``meshbits`` program exits 1 (a budget not met), not 2 (refused input)."""
 
 
 def one_line(err: BaseException) -> str:

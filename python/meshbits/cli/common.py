@@ -24,6 +24,9 @@ from ..units import length_unit_of, parse_length, parse_size
 EXIT_OK, EXIT_UNMET, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
+#: Ended by SIGTERM (128 + 15), after removing what it was writing.
+EXIT_TERMINATED = 143
+
 #: The reader of stdout closed it (``| head``): the code of a process ended by SIGPIPE.
 EXIT_BROKEN_PIPE = 141
 

@@ -6,11 +6,12 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from ..budget import Budget
-from ..compress import CompressResult, compress, compress_in_frame
+from ..compress import CompressResult, compress, compress_in_frame, float32_rounding
 from ..constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, ESTIMATORS
 from ..formats import example_mesh_path, load_mesh, save_mesh
 from ..results import Progress
@@ -77,6 +78,9 @@ _SCENE_FORMATS = (".glb", ".gltf")
 _UNSIZED_FORMATS = (".obj", ".off", ".stl")
 #: Outputs that store float64 coordinates (compressed about a centre far from the origin).
 _FLOAT64_FORMATS = (".obj", ".off")
+
+#: Outputs of float32 positions.
+_FLOAT32_FORMATS = (".drc", ".ply", ".stl")
 
 
 def add_compress(sub: argparse._SubParsersAction) -> None:
@@ -260,6 +264,10 @@ def _run_compress(args: argparse.Namespace) -> int:
         progress=_progress_lines(args.quiet, unit),
     )
     file_bytes = None
+    unheld = _unheld(result, suffix, mesh[0]) if output is not None else ""
+    if unheld:
+        result = replace(result, message=f"{result.message}; {unheld}")
+        output = None
     if output is not None:
         if suffix in _FORMATS:
             result.write(output)
@@ -288,6 +296,22 @@ def _run_compress(args: argparse.Namespace) -> int:
         if larger:
             print(f"note: {payload['notes'][0]}")
     return EXIT_OK if result.met else EXIT_UNMET
+
+
+def _unheld(result: CompressResult, suffix: str, vertices: Any) -> str:
+    """Why nothing is written, when an error budget was missed by an output of float32
+    positions that float32 alone, where the mesh lies, rounds by more than the budget
+    (the closest result there is no likeness of the mesh); else ``""``."""
+    if result.met or result.constraint != "error" or suffix not in _FLOAT32_FORMATS:
+        return ""
+    rounding = float32_rounding(vertices)
+    if rounding <= result.budget:
+        return ""
+    return (
+        f"nothing written: {suffix} stores float32 positions, which float32 alone moves by "
+        f"up to {rounding:.4g} (mesh units) where this mesh lies, more than the budget of "
+        f"{result.budget:.4g}; write .glb, .gltf, .obj or .off"
+    )
 
 
 def _progress_lines(quiet: bool, unit: str) -> Callable[[Progress], None]:
@@ -335,10 +359,7 @@ def _print_compress(
             ("passes", len(result.iterations)),
             (
                 "output",
-                str(output)
-                + ("" if result.met else " (the closest result: the budget was not met)")
-                if output
-                else "(not written: use -o)",
+                _output_text(output, result, file_bytes),
             ),
         ],
     )
@@ -348,6 +369,14 @@ def _print_compress(
             f"wrote {output}: {file_bytes} bytes ({suffix[1:]} of the decoded mesh; "
             f"the bytes above are the {result.format} encoding the search sized)"
         )
+
+
+def _output_text(output: Path | None, result: CompressResult, file_bytes: int | None) -> str:
+    if output is None:
+        return "(not written: use -o)"
+    if file_bytes is None:
+        return f"{output} not written (below)"
+    return str(output) + ("" if result.met else " (the closest result: the budget was not met)")
 
 
 def _is_scene_file(path: Path) -> bool:

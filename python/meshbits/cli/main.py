@@ -6,14 +6,16 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from .. import __version__
-from ..errors import MeshbitsError, one_line
+from ..errors import MeshbitsError, UnreachableBudgetError, one_line
 from .batch import add_batch
 from .calibrate import add_calibrate
 from .common import (
@@ -21,6 +23,8 @@ from .common import (
     EXIT_BROKEN_PIPE,
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
+    EXIT_TERMINATED,
+    EXIT_UNMET,
     UserError,
     print_json,
 )
@@ -97,13 +101,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             print_json({"error": str(err), "exit_code": EXIT_BAD_INPUT})
         return EXIT_BAD_INPUT
     where = f"meshbits {args.command}"
+    previous = _catch_termination()
     try:
         return int(args.run(args))
     except BrokenPipeError:
         # The reader of stdout went away (``| head``): no traceback, nothing more to say.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as err:
+        # Ctrl-C, or SIGTERM (raised as _Terminated): temporary files were removed on the
+        # way out.
+        if isinstance(err, _Terminated):
+            print(f"{where}: terminated", file=sys.stderr)
+            return _failed(args, "terminated", EXIT_TERMINATED)
         print(f"{where}: interrupted", file=sys.stderr)
         return _failed(args, "interrupted", EXIT_INTERRUPTED)
     except (UserError, MeshbitsError, OSError) as err:
@@ -113,6 +123,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if isinstance(err, MeshbitsError) and isinstance(mesh, Path) and mesh.name not in message:
             # Found in the mesh once read (no surface, a budget it cannot meet...): name it.
             message = f"{mesh.name}: {message}"
+        if isinstance(err, UnreachableBudgetError):
+            message += "; nothing written"
+            print(f"{where}: budget not met: {message}", file=sys.stderr)
+            return _failed(args, message, EXIT_UNMET)
         print(f"{where}: error: {message}", file=sys.stderr)
         return _failed(args, message, EXIT_BAD_INPUT)
     except Exception as err:
@@ -127,6 +141,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _failed(
             args, f"internal error: {type(err).__name__}: {one_line(err)}", EXIT_INTERNAL
         )
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is, as Ctrl-C is, so that what it was writing is
+    cleaned up (its temporary files and folders) before it exits."""
+
+
+def _raise_terminated(signum: int, frame: object) -> NoReturn:
+    raise _Terminated
+
+
+def _catch_termination() -> Any:
+    """Turn SIGTERM into :class:`_Terminated` while a command runs (from the main thread
+    only, where Python runs signal handlers); returns the handler to put back, if any."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _raise_terminated)
 
 
 def _failed(args: argparse.Namespace, message: str, code: int) -> int:

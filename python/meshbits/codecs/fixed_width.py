@@ -13,7 +13,7 @@ import numpy as np
 from ..constants import FORMAT_MAX_BITS
 from ..errors import MeshbitsError
 from ..formats.gltf.spec import COMPONENT_TYPES
-from ..formats.gltf.write import glb_bytes
+from ..formats.gltf.write import float32_safe, glb_bytes, json_number, split_translation
 from ..mesh import MeshLike, as_mesh, compact
 from ..quantize import quantize
 from .encoded import Encoded, check_bits, encoding_grid
@@ -96,6 +96,20 @@ def encode_quantized_glb(
     )
 
 
+def _placed(lo: np.ndarray, step: float, extent: float) -> list[dict[str, Any]]:
+    """The nodes placing the codes: one at ``translation = lo``, ``scale = step``; or,
+    where a float32 reader would round ``lo`` by more than a position near the origin,
+    a float32-exact parent and that node inside it
+    (:func:`meshbits.formats.gltf.write.split_translation`)."""
+    if float32_safe(lo, extent):
+        return [{"mesh": 0, "translation": [float(x) for x in lo], "scale": [step] * 3}]
+    outer, inner = split_translation(lo, extent)
+    return [
+        {"translation": [json_number(x) for x in outer], "children": [1]},
+        {"mesh": 0, "translation": [float(x) for x in inner], "scale": [step] * 3},
+    ]
+
+
 def _quantized_glb(
     bits: int, lo: np.ndarray, step: float, codes: np.ndarray, faces: np.ndarray
 ) -> bytes:
@@ -154,7 +168,7 @@ def _quantized_glb(
         "extensionsUsed": ["KHR_mesh_quantization"],
         "extensionsRequired": ["KHR_mesh_quantization"],
         "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0, "mode": 4}]}],
-        "nodes": [{"mesh": 0, "translation": [float(x) for x in lo], "scale": [step] * 3}],
+        "nodes": _placed(lo, step, float(np.ptp(codes, axis=0).max(initial=0)) * step),
         "scene": 0,
         "scenes": [{"nodes": [0]}],
     }

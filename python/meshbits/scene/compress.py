@@ -20,7 +20,7 @@ import numpy as np
 from ..budget import Budget
 from ..codecs.attributes import NORMAL_TOLERANCE_DEGREES
 from ..codecs.primitive import PrimitiveEncoding
-from ..errors import MeshbitsError, MeshFileError
+from ..errors import MeshbitsError, MeshFileError, UnreachableBudgetError
 from ..files import asset_bytes, check_not_an_input
 from ..formats.gltf.document import Document, PrimitiveData
 from ..formats.gltf.write import (
@@ -471,7 +471,7 @@ def _size_search(
             if images
             else "its JSON and other data"
         )
-        raise MeshbitsError(
+        raise UnreachableBudgetError(
             f"the size budget ({budget / 8:.6g} bytes) is less than what the output keeps "
             f"whatever its geometry: {parts} ({fixed} bytes)"
         )

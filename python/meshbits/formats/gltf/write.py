@@ -35,12 +35,14 @@ __all__ = [
     "EncodedAnimations",
     "EncodedGeometry",
     "document_size",
+    "float32_safe",
     "frame_centre",
     "glb_bytes",
     "image_key",
     "json_number",
     "mesh_document",
     "rebuild_document",
+    "split_translation",
     "write_document",
     "write_mesh",
 ]
@@ -53,9 +55,12 @@ FRAME_DISTANCE = 16.0
 
 def frame_centre(points: np.ndarray) -> np.ndarray:
     """Where to put the origin of positions stored in float32 (mesh units): the centre of
-    the points' box, rounded to the power of two at or above its largest side (a short
-    number in the JSON; the positions stay within 1.5 sides of it), when that centre is
-    farther from the origin than :data:`FRAME_DISTANCE` sides; else the origin itself."""
+    the points' box when it is farther from the origin than :data:`FRAME_DISTANCE` sides
+    (else the origin itself), rounded to a multiple of the power of two at or above its
+    largest side and at or above the float32 spacing of its largest coordinate: a short
+    number in the JSON that float32 holds exactly, so a reader that keeps node transforms
+    in float32 places the positions where a float64 reader does. The positions stay
+    within half that power of two plus half a side of it."""
     if len(points) == 0:
         return np.zeros(3)
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -63,10 +68,40 @@ def frame_centre(points: np.ndarray) -> np.ndarray:
     centre = (lo + hi) / 2
     if not np.abs(centre).max() > FRAME_DISTANCE * extent:
         return np.zeros(3)
+    return _float32_multiple(centre, extent)
+
+
+def _float32_multiple(value: np.ndarray, extent: float) -> np.ndarray:
+    """``value`` rounded to a multiple of the power of two at or above ``extent`` and at
+    or above the float32 spacing of its largest component: every component is then a
+    float32 exactly."""
+    largest = float(np.abs(value).max())
+    unit = float(np.spacing(np.float32(largest))) if largest > 0 else 0.0
     if extent > 0:
-        unit = 2.0 ** math.ceil(math.log2(extent))
-        centre = np.round(centre / unit) * unit
-    return centre
+        unit = max(unit, 2.0 ** math.ceil(math.log2(extent)))
+    if unit == 0:
+        return np.asarray(value, dtype=np.float64)
+    return np.round(np.asarray(value, dtype=np.float64) / unit) * unit
+
+
+def float32_safe(translation: np.ndarray, extent: float) -> bool:
+    """Whether a reader that rounds ``translation`` to float32 moves what it places by no
+    more than float32 rounds a position within :data:`FRAME_DISTANCE` sides of the
+    origin: it is a float32 exactly, or within that distance of the origin."""
+    translation = np.asarray(translation, dtype=np.float64)
+    if np.array_equal(translation.astype(np.float32).astype(np.float64), translation):
+        return True
+    return bool(np.abs(translation).max() <= FRAME_DISTANCE * extent)
+
+
+def split_translation(translation: np.ndarray, extent: float) -> tuple[np.ndarray, np.ndarray]:
+    """``translation`` as ``outer + inner``, ``outer`` a float32 exactly (a multiple of a
+    power of two at or above ``extent``, :func:`frame_centre`'s rounding) and ``inner``
+    within that power of two of the origin: two nodes, the outer the parent, that a
+    float32 reader places as a float64 reader does (to float32's rounding of ``inner``)."""
+    translation = np.asarray(translation, dtype=np.float64)
+    outer = _float32_multiple(translation, extent)
+    return outer, translation - outer
 
 
 def json_number(value: float) -> float | int:
@@ -213,6 +248,7 @@ def rebuild_document(
     ``animations`` pointed at their new data; every other primitive, and everything else,
     copied (images into the buffer)."""
     frames = _frames(geometries)
+    extents = _extents(geometries)
     skins = skin_frames(document, frames)
     rebuilt = _Rebuilt(document, {t for geometry in geometries for t in geometry.targets})
     rebuilt.add_animations(animations)
@@ -221,7 +257,7 @@ def rebuild_document(
         rebuilt.add_geometry(geometry, codec)
     out = rebuilt.out
     if frames:
-        _apply_frames(out, document, frames)
+        _apply_frames(out, document, frames, extents)
     out["accessors"] = rebuilt.accessors
     out["bufferViews"] = rebuilt.views
     meshopt_animations = animations is not None and animations.meshopt
@@ -468,6 +504,23 @@ def _frames(geometries: list[CompressedGeometry]) -> dict[int, Frame]:
     return frames
 
 
+def _extents(geometries: list[CompressedGeometry]) -> dict[int, float]:
+    """``mesh -> `` the largest side of its positions' box (mesh units), from the
+    ``POSITION`` accessor's bounds (0 where it has none)."""
+    extents: dict[int, float] = {}
+    for geometry in geometries:
+        encoding = geometry.encoding
+        position = encoding.accessors.get("POSITION", {})
+        step = 1.0 if encoding.dequantize is None else encoding.dequantize[1]
+        extent = 0.0
+        if "min" in position and "max" in position:
+            sides = np.subtract(position["max"], position["min"], dtype=np.float64)
+            extent = float(sides.max()) * step
+        for mesh, _ in geometry.targets:
+            extents[mesh] = max(extents.get(mesh, 0.0), extent)
+    return extents
+
+
 def _set_extensions(
     out: dict[str, Any], codec: str, compressed: bool, meshopt_animations: bool = False
 ) -> None:
@@ -519,13 +572,21 @@ def _point_at(
 
 
 def _apply_frames(
-    out: dict[str, Any], document: Document, frames: dict[int, tuple[np.ndarray, float]]
+    out: dict[str, Any],
+    document: Document,
+    frames: dict[int, tuple[np.ndarray, float]],
+    extents: dict[int, float],
 ) -> None:
     """A mesh whose positions are stored in a frame of their own (``mesh -> (origin,
     step)``: a reader places ``origin + step * stored``; integer codes with meshopt,
     positions relative to their centre with Draco) has it folded into the nodes that show
     it, or, for a node that carries more than the mesh (children, an animation, a skin, a
-    camera, extensions), into a new child node that takes the mesh over."""
+    camera, extensions), into a new child node that takes the mesh over.
+
+    No translation is written that a float32 reader of node transforms would round by
+    more than a position near the origin (:func:`float32_safe`): one that would is split
+    into a float32-exact parent and a small child (:func:`split_translation`), and a
+    node whose folded translation would be is left as it was, its frame in a child."""
     animated = document.animated_nodes()
     nodes = out.setdefault("nodes", [])
     for index in range(len(nodes)):
@@ -534,6 +595,7 @@ def _apply_frames(
         if mesh is None or mesh not in frames:
             continue
         origin, step = frames[mesh]
+        extent = extents.get(mesh, 0.0)
         alone = set(node) <= {
             "mesh",
             "name",
@@ -543,27 +605,49 @@ def _apply_frames(
             "matrix",
             "weights",
         }
-        if not alone or index in animated:
-            child: dict[str, Any] = {"mesh": mesh, "translation": [json_number(x) for x in origin]}
-            if step != 1.0:
-                child["scale"] = [step] * 3
-            if "weights" in node:
-                child["weights"] = node.pop("weights")
-            node.pop("mesh")
-            nodes.append(child)
-            node.setdefault("children", []).append(len(nodes) - 1)
+        if alone and index not in animated and _fold(node, document, index, origin, step, extent):
             continue
-        local = document.node_matrix(index)
-        d = np.eye(4)
-        d[:3, :3] *= step
-        d[:3, 3] = origin
-        if "matrix" in node:
-            node["matrix"] = [float(x) for x in (local @ d).T.reshape(-1)]
-        else:
-            rotation_scale = local[:3, :3]
-            node["translation"] = [json_number(x) for x in local[:3, 3] + rotation_scale @ origin]
-            if step != 1.0:
-                node["scale"] = [float(s) * step for s in node.get("scale", [1.0, 1.0, 1.0])]
+        parent = index
+        if not float32_safe(origin, extent):
+            outer, origin = split_translation(origin, extent)
+            nodes.append({"translation": [json_number(x) for x in outer]})
+            node.setdefault("children", []).append(len(nodes) - 1)
+            parent = len(nodes) - 1
+        child: dict[str, Any] = {"mesh": mesh, "translation": [json_number(x) for x in origin]}
+        if step != 1.0:
+            child["scale"] = [step] * 3
+        if "weights" in node:
+            child["weights"] = node.pop("weights")
+        node.pop("mesh")
+        nodes.append(child)
+        nodes[parent].setdefault("children", []).append(len(nodes) - 1)
+
+
+def _fold(
+    node: dict[str, Any],
+    document: Document,
+    index: int,
+    origin: np.ndarray,
+    step: float,
+    extent: float,
+) -> bool:
+    """Fold the frame ``(origin, step)`` into ``node``'s own transform, unless the folded
+    translation would not be :func:`float32_safe` (then the node is left as it was and
+    False returned)."""
+    local = document.node_matrix(index)
+    d = np.eye(4)
+    d[:3, :3] *= step
+    d[:3, 3] = origin
+    folded = local @ d
+    if not float32_safe(folded[:3, 3], extent):
+        return False
+    if "matrix" in node:
+        node["matrix"] = [float(x) for x in folded.T.reshape(-1)]
+    else:
+        node["translation"] = [json_number(x) for x in folded[:3, 3]]
+        if step != 1.0:
+            node["scale"] = [float(s) * step for s in node.get("scale", [1.0, 1.0, 1.0])]
+    return True
 
 
 #: Inputs that can hold more than positions and faces (materials, textures, UVs, normals,
