@@ -63,20 +63,26 @@ def test_the_test_meshes_read_as_trimesh_reads_them(name):
     assert read.polygons == 0
 
 
-meshes = st.integers(4, 40).flatmap(
-    lambda n: st.tuples(
-        st.lists(
-            st.tuples(*[st.floats(-1e3, 1e3, allow_nan=False, width=32)] * 3),
-            min_size=n,
-            max_size=n,
-        ),
-        st.lists(
-            st.lists(st.integers(0, n - 1), min_size=3, max_size=3, unique=True),
-            min_size=1,
-            max_size=60,
-        ),
+def random_meshes(least_vertices: int, most_vertices: int, most_corners: int, most_faces: int):
+    """(vertices, faces) of float32-exact coordinates and faces of 3 to ``most_corners``
+    distinct corners."""
+    return st.integers(least_vertices, most_vertices).flatmap(
+        lambda n: st.tuples(
+            st.lists(
+                st.tuples(*[st.floats(-1e3, 1e3, allow_nan=False, width=32)] * 3),
+                min_size=n,
+                max_size=n,
+            ),
+            st.lists(
+                st.lists(st.integers(0, n - 1), min_size=3, max_size=most_corners, unique=True),
+                min_size=1,
+                max_size=most_faces,
+            ),
+        )
     )
-)
+
+
+meshes = random_meshes(4, 40, most_corners=3, most_faces=60)
 
 
 @SETTINGS
@@ -145,20 +151,7 @@ def binary_ply(
     return "\n".join(head).encode() + bytes(body)
 
 
-polygon_meshes = st.integers(5, 30).flatmap(
-    lambda n: st.tuples(
-        st.lists(
-            st.tuples(*[st.floats(-1e3, 1e3, allow_nan=False, width=32)] * 3),
-            min_size=n,
-            max_size=n,
-        ),
-        st.lists(
-            st.lists(st.integers(0, n - 1), min_size=3, max_size=6, unique=True),
-            min_size=1,
-            max_size=40,
-        ),
-    )
-)
+polygon_meshes = random_meshes(5, 30, most_corners=6, most_faces=40)
 
 
 @SETTINGS
