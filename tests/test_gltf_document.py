@@ -11,6 +11,8 @@ import struct
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import meshbits
 from meshbits.errors import MeshFileError
@@ -18,7 +20,13 @@ from meshbits.files import asset_bytes, external_files
 from meshbits.formats import Document, load_document, save_mesh
 from meshbits.formats.gltf.spec import TRIANGLE_FAN, TRIANGLE_STRIP, trs_matrix
 from meshbits.formats.gltf.validate import check_references, finite_or_fail
-from meshbits.formats.gltf.write import FRAME_DISTANCE, frame_centre
+from meshbits.formats.gltf.write import (
+    FRAME_DISTANCE,
+    frame_centre,
+    json_text,
+    number_text,
+    split_translation,
+)
 from meshbits.formats.open import check_structure
 from meshbits.formats.sniff import file_type_of, image_size, mime_type
 
@@ -264,6 +272,76 @@ def test_the_frame_centre_moves_only_a_far_mesh():
     assert not frame_centre(np.zeros((0, 3))).any()
     far = VERTICES + (FRAME_DISTANCE + 1)
     np.testing.assert_array_equal(frame_centre(far), [18, 18, 18])
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.floats(allow_nan=False, allow_infinity=False))
+def test_a_number_is_written_exactly_and_never_longer_than_json_writes_it(value):
+    text = number_text(value)
+    assert float(json.loads(text)) == value
+    assert len(text) <= len(json.dumps(value))
+
+
+def test_numbers_the_writer_shortens():
+    assert [number_text(x) for x in (420000.0, 5.4e6, -0.0, 100.0, 1e-05, 1.5e20)] == [
+        "42e4",
+        "54e5",
+        "0",
+        "100",
+        "1e-5",
+        "1.5e20",
+    ]
+    with pytest.raises(ValueError, match="cannot be written in JSON"):
+        number_text(float("nan"))
+
+
+json_values = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**53), 2**53)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(max_size=8),
+    lambda inner: (
+        st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=6), inner, max_size=4)
+    ),
+    max_leaves=20,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(json_values)
+def test_a_document_reads_back_as_it_was_written(document):
+    """Equal values (a float integral in value may read back as an integer: JSON has one
+    number type); an integer is written as an integer, never with an exponent."""
+    assert json.loads(json_text(document)) == document
+    if isinstance(document, int) and not isinstance(document, bool):
+        assert json_text(document) == str(document).encode()
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(st.floats(-1e8, 1e8, allow_nan=False), min_size=3, max_size=3),
+    st.floats(1e-9, 1e4),
+)
+def test_a_split_translation_is_a_short_float32_and_a_small_rest(translation, extent):
+    """The outer part is a float32 exactly (a float32 reader of node transforms places it
+    as a float64 reader does), within half a unit of the translation (the unit: the power
+    of two at or above the extent and the float32 spacing there), and never written
+    longer than the multiple of that unit nearest to it."""
+    outer, inner = split_translation(np.array(translation), extent)
+    largest = max(abs(x) for x in translation)
+    unit = max(2.0 ** np.ceil(np.log2(extent)), float(np.spacing(np.float32(largest))))
+    np.testing.assert_array_equal(outer.astype(np.float32).astype(np.float64), outer)
+    assert np.abs(inner).max() <= unit / 2
+    np.testing.assert_array_equal(outer + inner, translation)
+    for part, value in zip(outer, translation, strict=True):
+        assert len(number_text(part)) <= len(number_text(round(value / unit) * unit))
+
+
+def test_a_georeferenced_centre_is_a_short_decimal():
+    far = VERTICES * 0.1 + [4.2e5, 5.4e6, 0.0]
+    centre = frame_centre(far)
+    assert [number_text(x) for x in centre] == ["42e4", "54e5", "0"]
 
 
 # --- sniffing ---------------------------------------------------------------------------

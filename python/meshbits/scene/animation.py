@@ -34,14 +34,13 @@ ended it, so its duration is unchanged.
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
 from ..formats.gltf.document import Document
-from ..formats.gltf.write import EncodedAnimations
+from ..formats.gltf.write import EncodedAnimations, json_text
 from .animation_input import SamplerInput, accessor_bytes, read_samplers
 from .animation_paths import Skeleton, node_deviations, read_skeleton, world_matrices
 from .animation_streams import WrittenSampler, assemble, layout_bytes, share_keys
@@ -470,7 +469,7 @@ def _animation(
         specs = document.json["animations"][index]["samplers"]
         used = {specs[k][key] for k in chosen for key in ("input", "output")}
         before = sum(accessor_bytes(document, x) for x in used) + len(
-            json.dumps([document.json["accessors"][x] for x in used], separators=(",", ":"))
+            json_text([document.json["accessors"][x] for x in used])
         )
         if _found_bytes(found, samplers, meshopt) >= before:
             for s in samplers:

@@ -12,14 +12,13 @@ of a multiple of 4 bytes, at most 256. Without meshopt, plainly."""
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .. import _core
-from ..formats.gltf.write import EncodedAnimations, json_number
+from ..formats.gltf.write import EncodedAnimations, json_number, json_text
 from .keyframes import EncodedTrack
 
 __all__ = ["WrittenSampler", "assemble", "layout_bytes", "share_keys"]
@@ -133,7 +132,7 @@ def layout_bytes(samplers: list[WrittenSampler], meshopt: bool) -> int:
     """Bytes a set of samplers costs written alone: its streams and its accessors' JSON."""
     encoded = assemble(samplers, meshopt)
     data = sum(len(s["raw"] if s["data"] is None else s["data"]) for s in encoded.streams)
-    return data + len(json.dumps(encoded.accessors, separators=(",", ":")))
+    return data + len(json_text(encoded.accessors))
 
 
 def _layout(

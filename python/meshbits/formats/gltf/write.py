@@ -40,7 +40,9 @@ __all__ = [
     "glb_bytes",
     "image_key",
     "json_number",
+    "json_text",
     "mesh_document",
+    "number_text",
     "rebuild_document",
     "split_translation",
     "write_document",
@@ -72,16 +74,32 @@ def frame_centre(points: np.ndarray) -> np.ndarray:
 
 
 def _float32_multiple(value: np.ndarray, extent: float) -> np.ndarray:
-    """``value`` rounded to a multiple of the power of two at or above ``extent`` and at
-    or above the float32 spacing of its largest component: every component is then a
-    float32 exactly."""
-    largest = float(np.abs(value).max())
+    """``value`` rounded, component by component, to the float32 that :func:`json_text`
+    writes shortest among those within half a unit of it (the unit: the power of two at
+    or above ``extent`` and at or above the float32 spacing of its largest component):
+    the multiple of the unit nearest to it, or a decimal of fewer digits (``42e4`` for
+    420000.3 at a unit of 0.25, where the multiple is 420000.25). Every component is a
+    float32 exactly and within half a unit of ``value``."""
+    value = np.asarray(value, dtype=np.float64)
+    largest = float(np.abs(value).max()) if value.size else 0.0
     unit = float(np.spacing(np.float32(largest))) if largest > 0 else 0.0
     if extent > 0:
         unit = max(unit, 2.0 ** math.ceil(math.log2(extent)))
     if unit == 0:
-        return np.asarray(value, dtype=np.float64)
-    return np.round(np.asarray(value, dtype=np.float64) / unit) * unit
+        return value.copy()
+    return np.array([_short_within(float(v), unit) for v in value])
+
+
+def _short_within(value: float, unit: float) -> float:
+    """The float32 of the shortest JSON text within ``unit / 2`` of ``value``: the
+    nearest multiple of ``unit``, or a rounding of ``value`` to fewer significant digits
+    (ties: the nearer one)."""
+    candidates = [round(value / unit) * unit]
+    for digits in range(1, 10):
+        rounded = float(f"{value:.{digits - 1}e}")
+        if abs(rounded - value) <= unit / 2 and float(np.float32(rounded)) == rounded:
+            candidates.append(rounded)
+    return min(candidates, key=lambda c: (len(number_text(c)), abs(c - value)))
 
 
 def float32_safe(translation: np.ndarray, extent: float) -> bool:
@@ -104,13 +122,68 @@ def split_translation(translation: np.ndarray, extent: float) -> tuple[np.ndarra
     return outer, translation - outer
 
 
-def json_number(value: float) -> float | int:
-    """A float64 as JSON writes it shortest and exactly: an integral value as an integer
-    (``420000`` for ``420000.0``; ``0`` for ``-0.0``)."""
+def json_number(value: float) -> float:
+    """A float64 for the JSON: :func:`json_text` writes it shortest and exactly
+    (``42e4`` for ``420000.0``; ``0`` for ``-0.0``)."""
+    return float(value)
+
+
+def number_text(value: float) -> str:
+    """The shortest JSON number that reads back as ``value`` exactly: an integral value
+    as an integer or, where three or more zeros end it, with an exponent (``1e6``, as
+    gltfpack writes such numbers too); any other as Python's shortest round-trip decimal
+    with the exponent's ``+`` and leading zeros dropped (``1e-5``, not ``1e-05``). A
+    value that is not finite has no JSON number and is refused."""
     value = float(value)
-    if value.is_integer() and abs(value) < 2**53:
-        return int(value)
-    return value
+    if not math.isfinite(value):
+        raise ValueError(f"{value} cannot be written in JSON")
+    if value.is_integer() and abs(value) < 1e16:
+        digits = str(int(value))
+        stripped = digits.rstrip("0")
+        zeros = len(digits) - len(stripped)
+        return f"{stripped}e{zeros}" if zeros >= 3 else digits
+    text = repr(value)
+    if "e" in text:
+        mantissa, exponent = text.split("e")
+        text = f"{mantissa}e{int(exponent)}"
+    return text
+
+
+def json_text(document: object) -> bytes:
+    """The compact JSON of a glTF document (no spaces): integers (counts, offsets,
+    indices) as integers, every float as :func:`number_text` writes it, strings as
+    :func:`json.dumps` writes them (ASCII, escaped)."""
+    parts: list[str] = []
+    _encode(document, parts)
+    return "".join(parts).encode()
+
+
+def _encode(value: object, parts: list[str]) -> None:
+    if value is None:
+        parts.append("null")
+    elif value is True or value is False:
+        parts.append("true" if value else "false")
+    elif isinstance(value, int | np.integer):
+        parts.append(str(int(value)))
+    elif isinstance(value, float | np.floating):
+        parts.append(number_text(float(value)))
+    elif isinstance(value, str):
+        parts.append(json.dumps(value))
+    elif isinstance(value, dict):
+        parts.append("{")
+        for i, (key, item) in enumerate(value.items()):
+            parts.append(("," if i else "") + json.dumps(str(key)) + ":")
+            _encode(item, parts)
+        parts.append("}")
+    elif isinstance(value, list | tuple):
+        parts.append("[")
+        for i, item in enumerate(value):
+            if i:
+                parts.append(",")
+            _encode(item, parts)
+        parts.append("]")
+    else:
+        raise TypeError(f"a glTF document holds no {type(value).__name__}")
 
 
 # --- a mesh ---------------------------------------------------------------------------------
@@ -661,7 +734,7 @@ def _fold(
 
 def glb_bytes(document: dict[str, Any], binary: bytes) -> bytes:
     """A GLB container: the JSON chunk (space-padded) and the binary chunk."""
-    text = json.dumps(document, separators=(",", ":")).encode()
+    text = json_text(document)
     text += b" " * ((-len(text)) % 4)
     binary += b"\0" * ((-len(binary)) % 4)
     total = 12 + 8 + len(text) + (8 + len(binary) if binary else 0)
@@ -677,7 +750,7 @@ def document_size(document: dict[str, Any], binary: bytes, suffix: str) -> int:
     if suffix == ".gltf":
         buffers = document["buffers"]
         named = {**document, "buffers": [{**buffers[0], "uri": "x.bin"}, *buffers[1:]]}
-        return len(json.dumps(named, separators=(",", ":")).encode()) + len(binary)
+        return len(json_text(named)) + len(binary)
     return len(glb_bytes(document, binary))
 
 
@@ -703,12 +776,12 @@ def write_document(
         write_atomic(path, glb)
         return [str(path)], len(glb)
     if not document.get("buffers"):  # a document without binary data: its JSON alone
-        text = json.dumps(document, separators=(",", ":")).encode()
+        text = json_text(document)
         write_atomic(path, text)
         return [str(path)], len(text)
     bin_name = f"{path.stem}.bin"
     document["buffers"][0]["uri"] = bin_name
-    text = json.dumps(document, separators=(",", ":")).encode()
+    text = json_text(document)
     write_atomic(path.with_name(bin_name), binary)
     write_atomic(path, text)
     return [str(path), str(path.with_name(bin_name))], len(text) + len(binary)
