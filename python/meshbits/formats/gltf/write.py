@@ -133,10 +133,11 @@ def number_text(value: float) -> str:
     as an integer or, where three or more zeros end it, with an exponent (``1e6``, as
     gltfpack writes such numbers too); any other as Python's shortest round-trip decimal
     with the exponent's ``+`` and leading zeros dropped (``1e-5``, not ``1e-05``). A
-    value that is not finite has no JSON number and is refused."""
+    value that is not finite, which only an input's own JSON copied as it was can hold
+    (Python's reader takes ``NaN``), is written back as :func:`json.dumps` writes it."""
     value = float(value)
     if not math.isfinite(value):
-        raise ValueError(f"{value} cannot be written in JSON")
+        return json.dumps(value)
     if value.is_integer() and abs(value) < 1e16:
         digits = str(int(value))
         stripped = digits.rstrip("0")
