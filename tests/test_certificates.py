@@ -307,6 +307,22 @@ def test_text_outputs_far_from_the_origin_meet_the_budget(tmp_path, bunny, suffi
     assert true <= report["error_upper"] <= 0.01 * np.ptp(vertices, axis=0).max()
 
 
+@pytest.mark.parametrize("error", [1e-4, 3e-5])
+def test_a_budget_filled_to_the_last_digit_survives_the_move_back(error):
+    """The bunny at (4.2e5, 5.4e6, 0) to .obj at an absolute budget: the search certified
+    within about 1e-10 of it, and the move back from the centre (up to 8.1e-10 there)
+    took the bound past it: unmet, in a message that also said "met the error budget".
+    The move's rounding is now set aside before the search."""
+    vertices, faces = meshbits.load_mesh(DATA / "bunny.ply")
+    moved = vertices.astype(np.float64) + np.array([4.2e5, 5.4e6, 0.0])
+    result = meshbits.compress_in_frame((moved, faces), error=error)
+    assert result.met and result.budget == error, result.message
+    assert result.error_upper <= error and "did not meet" not in result.message
+    assert f"budget of {error:.6g} (mesh units)" in result.message
+    true = hausdorff_lower((moved, faces), (result.vertices, result.faces), samples=8000)
+    assert true <= result.error_upper
+
+
 def test_a_result_in_a_frame_is_not_written_as_a_drc(tmp_path, bunny):
     vertices, faces = bunny
     result = meshbits.compress_in_frame((vertices + 1e6, faces), error=0.01, relative=True)

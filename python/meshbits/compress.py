@@ -458,13 +458,16 @@ def compress_in_frame(mesh: MeshLike, **options: Any) -> CompressResult:
     (:func:`meshbits.formats.gltf.write.frame_centre`), where Draco's float32 positions
     keep their precision, and the result's vertices are moved back in float64.
 
-    The move there is exact: the centre is a multiple of a power of two at or above the
-    mesh's size, so each coordinate minus it is a multiple of the coordinate's own spacing
-    and no larger than it. The move back rounds each coordinate by at most half a float64
-    spacing at the output's largest coordinate; the certified bound grows by that
-    (``sqrt(3)/2`` spacings), and an error budget it then exceeds is not met. The result's
-    ``frame`` is the centre; its bytes are the encoding of the moved mesh that the search
-    sized, so :meth:`CompressResult.write` refuses them. Options are :func:`compress`'s.
+    The move there is exact: the centre is a float32 within half a power of two at or
+    above the mesh's size of its box's centre, so each coordinate minus it is a multiple
+    of the coordinate's own spacing and no larger than it. The move back rounds each
+    coordinate by at most half a float64 spacing at the output's largest coordinate
+    (``sqrt(3)/2`` spacings in all): an error budget is searched with that set aside
+    (the spacing at the input's largest coordinate plus the budget, which the output's
+    coordinates cannot pass), and the certified bound grows by what the move rounds. The
+    result's ``frame`` is the centre; its bytes are the encoding of the moved mesh that
+    the search sized, so :meth:`CompressResult.write` refuses them. Options are
+    :func:`compress`'s.
     """
     vertices, faces = as_mesh(mesh)
     centre = frame_centre(vertices)
@@ -477,15 +480,32 @@ def compress_in_frame(mesh: MeshLike, **options: Any) -> CompressResult:
             lod_vertices, lod_faces = as_mesh(lod)
             moved_lods.append((lod_vertices - centre, lod_faces))
         options["lods"] = moved_lods
-    result = compress((vertices - centre, faces), **options)
+    moved = (vertices - centre, faces)
+    given = options.get("error")
+    budget = reserved = None
+    if given is not None and not isinstance(given, bool) and float(given) > 0:
+        scale = shape_complexity(weld(moved)).grid_size if options.get("relative") else 1.0
+        budget = float(given) * scale
+        reach = float(np.abs(vertices).max(initial=0.0)) + budget
+        reserve = 0.5 * math.sqrt(3) * float(np.spacing(reach))
+        if 0 < reserve < budget and scale > 0:
+            reserved = budget - reserve
+            options["error"] = reserved / scale
+    result = compress(moved, **options)
     placed = result.vertices.astype(np.float64) + centre
     rounding = 0.5 * math.sqrt(3) * float(np.spacing(np.abs(placed).max(initial=0.0)))
     upper = None if result.error_upper is None else result.error_upper + rounding
     met, message = result.met, result.message
+    if reserved is not None and budget is not None:
+        message = message.replace(
+            _describe("error", result.budget), _describe("error", budget), 1
+        )
+        result = replace(result, budget=budget)
     if met and result.constraint == "error" and upper is not None and upper > result.budget:
         met = False
+        message = message.replace("met the error budget", "did not meet the error budget", 1)
         message += (
-            f" (not met: moving the output back from its centre rounds it by up to "
+            f" (moving the output back from its centre rounds it by up to "
             f"{rounding:.4g} (mesh units), which takes the certified bound to {upper:.6g})"
         )
     return replace(
