@@ -13,7 +13,13 @@ from typing import Any
 import numpy as np
 
 from ..budget import Budget
-from ..compress import CompressResult, compress, compress_in_frame, float32_rounding
+from ..compress import (
+    FLOAT32_LIKENESS,
+    CompressResult,
+    compress,
+    compress_in_frame,
+    float32_rounding,
+)
 from ..constants import DRACO_ALPHA, DRACO_CONNECTIVITY_BITS, ESTIMATORS
 from ..formats import example_mesh_path, load_mesh, save_mesh
 from ..results import Progress
@@ -81,9 +87,6 @@ _UNSIZED_FORMATS = (".obj", ".off", ".stl")
 #: Outputs that store float64 coordinates (compressed about a centre far from the origin).
 _FLOAT64_FORMATS = (".obj", ".off")
 
-#: A float32 output whose rounding alone is more than this fraction of the mesh's largest
-#: side, where the mesh lies, holds no likeness of it (:func:`_unheld`).
-_LIKENESS = 0.01
 
 #: Outputs of float32 positions.
 _FLOAT32_FORMATS = (".drc", ".ply", ".stl")
@@ -307,13 +310,13 @@ def _run_compress(args: argparse.Namespace) -> int:
 def _unheld(result: CompressResult, suffix: str, vertices: Any) -> str:
     """Why nothing is written, when an error budget was missed by an output of float32
     positions that float32 alone, where the mesh lies, rounds by more than the budget and
-    by more than :data:`_LIKENESS` of the mesh's size (the closest result there is no
-    likeness of the mesh); else ``""``."""
+    by more than :data:`meshbits.compress.FLOAT32_LIKENESS` of the mesh's size (the
+    closest result there is no likeness of the mesh); else ``""``."""
     if result.met or result.constraint != "error" or suffix not in _FLOAT32_FORMATS:
         return ""
     rounding = float32_rounding(vertices)
     side = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 0.0
-    if rounding <= result.budget or rounding <= _LIKENESS * side:
+    if rounding <= result.budget or rounding <= FLOAT32_LIKENESS * side:
         return ""
     return (
         f"nothing written: {suffix} stores float32 positions, which float32 alone moves by "
