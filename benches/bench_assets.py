@@ -190,7 +190,13 @@ def main() -> int:
             if "failed" in packed or "note" in row:
                 print(f"{path.name:32} {row['setting']:11} {packed.get('failed', row.get('note'))}")
                 continue
-            ratios = [row[c]["ratio"] for c in CODECS if "ratio" in row.get(c, {})]
+            # Only an output within its budget and its bound counts (an unmet one is not
+            # at the same error).
+            ratios = [
+                row[c]["ratio"]
+                for c in CODECS
+                if "ratio" in row.get(c, {}) and row[c]["met"] and row[c]["holds"]
+            ]
             row["best_ratio"] = min(ratios) if ratios else None
             seconds = max((row[c].get("seconds", 0) for c in CODECS), default=0)
             print(
