@@ -133,7 +133,7 @@ def compress_scene(
     budget = given.resolve(scene.world_size)
     jobs = scene.jobs
     outcomes, target_error = _search(scene, constraint, budget, codec, seed, certify, progress)
-    encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin)
+    encodings = final_encodings(jobs, outcomes, codec, certify, target_error, scene.margin, seed)
     tolerance = target_error if animation_tolerance is None else animation_tolerance
     animations, animation_report = compress_animations(
         scene.document, tolerance, codec == "meshopt"
@@ -460,7 +460,7 @@ def _size_search(
     and that error."""
 
     def file_bytes(outcomes: list[Outcome]) -> int:
-        encodings, _, _ = final_encodings(jobs, outcomes, codec, False, 0.0, 0.0, False)
+        encodings, _, _ = final_encodings(jobs, outcomes, codec, False, 0.0, 0.0, measure=False)
         return document_size(*scene_document(document, jobs, encodings, codec), ".glb")
 
     fixed = _fixed_bytes(document, jobs)
