@@ -51,6 +51,7 @@ from .mesh import (
     draco_drops_note,
     kept_shape,
     lost_geometry_note,
+    referenced,
     weld,
 )
 from .quantize import precision_bits
@@ -484,7 +485,9 @@ def compress_in_frame(mesh: MeshLike, **options: Any) -> CompressResult:
     given = options.get("error")
     budget = reserved = None
     if given is not None and not isinstance(given, bool) and float(given) > 0:
-        scale = shape_complexity(weld(moved)).grid_size if options.get("relative") else 1.0
+        # S as shape_complexity takes it: the largest side of the referenced vertices' box.
+        used = moved[0][referenced(faces, len(vertices))] if options.get("relative") else None
+        scale = float(np.ptp(used, axis=0).max()) if used is not None and len(used) else 1.0
         budget = float(given) * scale
         reach = float(np.abs(vertices).max(initial=0.0)) + budget
         reserve = 0.5 * math.sqrt(3) * float(np.spacing(reach))
