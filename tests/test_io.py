@@ -450,6 +450,22 @@ def test_a_gltf_with_any_broken_reference_is_refused_in_words(tmp_path, edits):
             pass
 
 
+def test_attributes_of_different_counts_are_refused_in_words(tmp_path):
+    """Found by the property test above: a NORMAL accessor of 0 rows beside 3 positions
+    went through the reader and reached the meshopt encoder as an IndexError."""
+    from meshbits.formats import load_document
+
+    document = _rich_gltf()
+    document["accessors"][1]["count"] = 0
+    file = tmp_path / "counts.gltf"
+    file.write_text(json.dumps(document))
+    for read in (load_document, meshbits.load_mesh):
+        with pytest.raises(meshbits.MeshbitsError, match=r"NORMAL has 0 rows.*POSITION 3"):
+            read(file)
+    with pytest.raises(meshbits.MeshbitsError, match="one row per vertex"):
+        meshbits.compress_scene(file, error=0.01, codec="meshopt", output=tmp_path / "o.glb")
+
+
 def test_the_rich_gltf_document_reads_whole(tmp_path):
     """The property test above starts from a valid document: every reader takes it."""
     from meshbits.formats import load_document

@@ -403,6 +403,26 @@ def _mesh_values(document: dict[str, Any]) -> None:
                 for name, index in target.items():
                     if name in ("POSITION", "NORMAL", "TANGENT"):
                         accessor_type(index, ("VEC3",), f"{where}.targets[{t}].{name}")
+            _same_counts(accessors, prim, where)
+
+
+def _same_counts(accessors: list[dict[str, Any]], prim: dict[str, Any], where: str) -> None:
+    """Every attribute and morph target accessor of a primitive holds one row per vertex:
+    the same count (glTF 2.0, 3.7.2.1 and 3.7.2.2); a NORMAL of 0 rows beside 3 positions
+    reached the meshopt encoder as an IndexError."""
+    named = [(f"attributes.{k}", v) for k, v in prim.get("attributes", {}).items()]
+    for t, target in enumerate(prim.get("targets") or []):
+        named += [(f"targets[{t}].{k}", v) for k, v in target.items()]
+    if not named:
+        return
+    first, index = named[0]
+    count = accessors[index]["count"]
+    for name, other in named[1:]:
+        if accessors[other]["count"] != count:
+            raise MeshFileError(
+                f"{where}.{name} has {accessors[other]['count']} rows, {where}.{first} "
+                f"{count}: a primitive's attributes and targets hold one row per vertex"
+            )
 
 
 def _node_values(document: dict[str, Any]) -> None:
